@@ -1,0 +1,20 @@
+"""Domains: primitives with exact distances, set operations, and plain callables d(p)."""
+
+from .base import BBox, Domain, GeometryError
+from .csg import Difference, Intersection, Union
+from .implicit import Implicit, as_domain
+from .primitives import Circle, Polygon, Rectangle
+
+__all__ = [
+    "BBox",
+    "Circle",
+    "Difference",
+    "Domain",
+    "GeometryError",
+    "Implicit",
+    "Intersection",
+    "Polygon",
+    "Rectangle",
+    "Union",
+    "as_domain",
+]

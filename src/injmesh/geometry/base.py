@@ -1,0 +1,143 @@
+"""The Domain base class: a region of the plane known by its signed distance function.
+
+Conventions
+-----------
+Points are ``(n, 2)`` float64 rows.  ``d(p) < 0`` inside, ``> 0`` outside; the boundary is where
+d changes sign (not merely where it is zero: the paper's L-shape is zero along an interior line).
+Boundary loops are closed polylines ``(k, 2)`` (last vertex not repeated) with the domain on their
+left: the outer boundary runs counter-clockwise, holes clockwise.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .. import _tolerances as tol
+
+if TYPE_CHECKING:
+    from .csg import Difference, Intersection, Union
+
+FloatArray = NDArray[np.float64]
+BBox = tuple[float, float, float, float]
+
+
+class GeometryError(ValueError):
+    """A domain is invalid: empty, unbounded in its box, or its d is malformed."""
+
+
+def as_points(p: object) -> FloatArray:
+    """Return ``p`` as an ``(n, 2)`` float64 array, raising a clear error otherwise."""
+    a = np.asarray(p, dtype=float)
+    if a.ndim == 1 and a.shape[0] == 2:
+        a = a[None, :]
+    if a.ndim != 2 or a.shape[1] != 2:
+        raise ValueError(f"points must have shape (n, 2), got {a.shape}")
+    return a
+
+
+class Domain(ABC):
+    """A 2-D region given by its signed distance function.
+
+    Subclasses implement :meth:`sdf` and :attr:`bbox`; they override :meth:`corners`,
+    :meth:`project` and :meth:`boundary_loops` when they know them exactly.  Domains compose with
+    ``a | b`` (union), ``a & b`` (intersection) and ``a - b`` (difference).
+
+    Examples
+    --------
+    >>> from injmesh import Circle, Rectangle
+    >>> ring = Circle((0, 0), 1) - Circle((0, 0), 0.2)
+    >>> ring.sdf([[0.5, 0.0]]).round(3)
+    array([-0.3])
+    """
+
+    @abstractmethod
+    def sdf(self, p: FloatArray) -> FloatArray:
+        """Signed distance of each point, ``(n,)``: negative inside."""
+
+    @property
+    @abstractmethod
+    def bbox(self) -> BBox:
+        """``(xmin, ymin, xmax, ymax)``, a box that contains the domain."""
+
+    def __call__(self, p: FloatArray) -> FloatArray:
+        return self.sdf(p)
+
+    @property
+    def diameter(self) -> float:
+        """Length of the bounding box's diagonal: the scale of relative tolerances."""
+        x0, y0, x1, y1 = self.bbox
+        return float(np.hypot(x1 - x0, y1 - y0))
+
+    def corners(self) -> FloatArray:
+        """Sharp corners of the boundary, ``(k, 2)``; they stay fixed while meshing."""
+        return np.empty((0, 2))
+
+    def gradient(self, p: FloatArray) -> FloatArray:
+        """Gradient of d by central differences, ``(n, 2)``."""
+        p = as_points(p)
+        eps = tol.GRADIENT_STEP * self.diameter
+        dx = np.array([eps, 0.0])
+        dy = np.array([0.0, eps])
+        return np.stack(
+            [
+                (self.sdf(p + dx) - self.sdf(p - dx)) / (2 * eps),
+                (self.sdf(p + dy) - self.sdf(p - dy)) / (2 * eps),
+            ],
+            axis=1,
+        )
+
+    def project(self, p: FloatArray) -> FloatArray:
+        """Move points onto the boundary by Eq. (3.2), ``p - d grad d``, iterated.
+
+        The step is divided by ``|grad d|^2`` (a Newton step), so functions that are not exact
+        distances but vanish on the boundary also project correctly.
+        """
+        p = as_points(p).copy()
+        stop = tol.PROJECTION_TOL * self.diameter
+        active = np.arange(len(p))
+        for _ in range(tol.PROJECTION_ITERATIONS):
+            d = self.sdf(p[active])
+            moving = np.abs(d) > stop
+            active, d = active[moving], d[moving]
+            if len(active) == 0:
+                break
+            g = self.gradient(p[active])
+            g2 = np.maximum(np.einsum("ij,ij->i", g, g), 1e-30)
+            p[active] -= (d / g2)[:, None] * g
+        return p
+
+    def boundary_loops(self, spacing: float) -> list[FloatArray]:
+        """Closed polylines of the boundary with vertices at most about ``spacing`` apart.
+
+        The generic version traces the sign change of d on a grid (marching squares) and projects
+        the vertices onto the boundary; primitives override it with exact loops.
+        """
+        from .tracing import trace_loops
+
+        loops = trace_loops(self.sdf, self.bbox, spacing)
+        return [self.project(loop) for loop in loops]
+
+    def __or__(self, other: Domain) -> Union:
+        from .csg import Union
+
+        return Union(self, _check(other))
+
+    def __and__(self, other: Domain) -> Intersection:
+        from .csg import Intersection
+
+        return Intersection(self, _check(other))
+
+    def __sub__(self, other: Domain) -> Difference:
+        from .csg import Difference
+
+        return Difference(self, _check(other))
+
+
+def _check(other: object) -> Domain:
+    if not isinstance(other, Domain):
+        raise TypeError(f"cannot combine a Domain with {type(other).__name__}")
+    return other

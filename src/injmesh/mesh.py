@@ -1,0 +1,182 @@
+"""The immutable result of meshing."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .quality import (
+    SizeReport,
+    signed_areas,
+    size_report,
+    triangle_angles,
+    triangle_quality,
+    unique_edges,
+)
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+
+
+@dataclass(frozen=True)
+class MeshStats:
+    """What it took to make a mesh.
+
+    Attributes
+    ----------
+    method : str
+        ``"injection"`` (the paper's algorithm) or ``"distmesh"`` (the baseline).
+    iterations : int
+        Smoothing iterations performed.
+    converged : bool
+        Whether smoothing met its convergence test before the iteration cap.
+    retriangulations : int
+        Number of Delaunay triangulations computed.
+    boundary_nodes, initial_nodes : int
+        Nodes after boundary meshing (Step 1) and after node injection (Step 2).
+    seconds : dict
+        Wall-clock seconds per stage.
+    """
+
+    method: str = "injection"
+    iterations: int = 0
+    converged: bool = True
+    retriangulations: int = 0
+    boundary_nodes: int = 0
+    initial_nodes: int = 0
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def total_seconds(self) -> float:
+        """Sum of the per-stage seconds."""
+        return float(sum(self.seconds.values()))
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """A triangular mesh; never modified after it is made.
+
+    Attributes
+    ----------
+    points : (n, 2) float64 array
+        Node coordinates.
+    triangles : (m, 3) int array
+        Node indices of each triangle, counter-clockwise.
+    boundary_edges : (k, 2) int array
+        Boundary edges, oriented with the domain on their left (outer boundary counter-clockwise,
+        holes clockwise).
+    boundary_tags : (k,) int array
+        Boundary component of each boundary edge: 0 for the outer boundary of the largest
+        component, then one number per further loop (holes, other components).
+    size : callable or None
+        The size function h the mesh was made for, used by :meth:`size_report`.
+    stats : MeshStats
+        Iterations, convergence and timings.
+    """
+
+    points: FloatArray
+    triangles: IntArray
+    boundary_edges: IntArray
+    boundary_tags: IntArray
+    size: Callable[[FloatArray], FloatArray] | None = None
+    stats: MeshStats = field(default_factory=MeshStats)
+
+    def __post_init__(self) -> None:
+        for name in ("points", "triangles", "boundary_edges", "boundary_tags"):
+            a = np.array(getattr(self, name), copy=True)
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+
+    @property
+    def n_points(self) -> int:
+        """Number of nodes."""
+        return int(len(self.points))
+
+    @property
+    def n_triangles(self) -> int:
+        """Number of triangles."""
+        return int(len(self.triangles))
+
+    @property
+    def edges(self) -> IntArray:
+        """All distinct edges ``(k, 2)`` with ``i < j``."""
+        return unique_edges(self.triangles)
+
+    @property
+    def boundary_nodes(self) -> IntArray:
+        """Sorted indices of the nodes on the boundary."""
+        return np.unique(self.boundary_edges)
+
+    @property
+    def converged(self) -> bool:
+        """Whether smoothing converged (see :class:`MeshStats`)."""
+        return self.stats.converged
+
+    def quality(self) -> FloatArray:
+        """Quality q of every triangle, Eq. (5.1) of the paper (1 is equilateral)."""
+        return triangle_quality(self.points, self.triangles)
+
+    def angles(self) -> FloatArray:
+        """Interior angles of every triangle in degrees, ``(m, 3)``."""
+        return triangle_angles(self.points, self.triangles)
+
+    def areas(self) -> FloatArray:
+        """Area of every triangle (positive: triangles are counter-clockwise)."""
+        return signed_areas(self.points, self.triangles)
+
+    def size_report(self, size: Callable[[FloatArray], FloatArray] | float | None = None) -> SizeReport:
+        """Edge lengths against h: the paper's Er and the mean relative error.
+
+        Parameters
+        ----------
+        size : float or callable, optional
+            The h to compare against; defaults to the h the mesh was made for.
+        """
+        from .sizing import as_size_function
+
+        h = size if size is not None else self.size
+        if h is None:
+            raise ValueError("this mesh carries no size function; pass size=...")
+        return size_report(self.points, self.triangles, as_size_function(h))
+
+    def summary(self) -> dict[str, Any]:
+        """Nodes, triangles, quality and size figures as a flat dict (for tables and JSON)."""
+        q = self.quality()
+        out: dict[str, Any] = {
+            "N": self.n_points,
+            "triangles": self.n_triangles,
+            "iterations": self.stats.iterations,
+            "converged": self.stats.converged,
+            "q_min": float(q.min()) if len(q) else float("nan"),
+            "q_mean": float(q.mean()) if len(q) else float("nan"),
+            "seconds": self.stats.total_seconds,
+        }
+        if self.size is not None:
+            r = self.size_report()
+            out["Er"] = r.er
+            out["Er_rel"] = r.relative
+        return out
+
+    def write(self, path: str | Path, **kwargs: Any) -> None:
+        """Write the mesh to a file; the format follows the extension (see :mod:`injmesh.io`)."""
+        from .io import write
+
+        write(self, path, **kwargs)
+
+    def plot(self, ax: Axes | None = None, **kwargs: Any) -> Axes:
+        """Draw the mesh coloured by quality (see :func:`injmesh.plot.plot_mesh`)."""
+        from .plot import plot_mesh
+
+        return plot_mesh(self, ax=ax, **kwargs)
+
+    def __repr__(self) -> str:
+        q = self.quality()
+        qmin = f"{q.min():.3f}" if len(q) else "n/a"
+        return f"<Mesh: {self.n_points} points, {self.n_triangles} triangles, min q {qmin}>"
