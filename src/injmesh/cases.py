@@ -15,8 +15,8 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -77,7 +77,9 @@ def _r(p: FloatArray, cx: float, cy: float) -> FloatArray:
     return np.hypot(p[:, 0] - cx, p[:, 1] - cy)
 
 
-def _cones(centres: list[tuple[float, float]], slope: float, base: float) -> Callable[[FloatArray], FloatArray]:
+def _cones(
+    centres: list[tuple[float, float]], slope: float, base: float
+) -> Callable[[FloatArray], FloatArray]:
     def h(p: FloatArray) -> FloatArray:
         p = np.asarray(p, dtype=float)
         return np.min([slope * _r(p, cx, cy) + base for cx, cy in centres], axis=0)

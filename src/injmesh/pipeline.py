@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import time
 import warnings
-from typing import Callable, Literal
+from collections.abc import Callable
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -16,7 +17,7 @@ from .injection import inject_nodes
 from .mesh import Mesh, MeshStats
 from .progress import Callback
 from .sizing import SizeLike, as_size_function
-from .smoothing import smooth
+from .smoothing import Smoothing, smooth
 from .triangulation import boundary_edges
 
 FloatArray = NDArray[np.float64]
@@ -41,6 +42,7 @@ def generate(
     fixed_points: ArrayLike | None = None,
     max_iterations: int | None = None,
     max_nodes: int = DEFAULT_MAX_NODES,
+    smoothing: Smoothing = "hybrid",
     h0: float | None = None,
     seed: int | None = None,
     callback: Callback | None = None,
@@ -66,10 +68,15 @@ def generate(
     fixed_points : (k, 2) array_like, optional
         Points that become mesh nodes and never move.  On the boundary they act as corners.
     max_iterations : int, optional
-        Cap on smoothing iterations (default 300 for injection, 10000 for DistMesh).  Reaching it
+        Cap on smoothing iterations (default 500 for injection, 10000 for DistMesh).  Reaching it
         emits a :class:`ConvergenceWarning` and returns a mesh with ``converged=False``.
     max_nodes : int
         Refuse (:class:`NodeBudgetError`) a mesh that would need more nodes than this.
+    smoothing : {"hybrid", "attractive"}
+        Injection only.  ``"hybrid"``: the paper's attractive force (Eq. 3.4) to relax the
+        injected nodes, then a spring with rest length h to convergence, then local repair of
+        bad triangles (see :mod:`injmesh.smoothing`).  ``"attractive"``: the paper's force alone,
+        as printed, to reproduce its results.
     h0 : float, optional
         DistMesh only: the spacing of its initial grid (default: the smallest h on the domain).
     seed : int, optional
@@ -107,7 +114,9 @@ def generate(
     elif method == "injection":
         if h0 is not None or seed is not None:
             raise ValueError("h0 and seed apply to method='distmesh' only")
-        mesh = _injection(dom, h, fixed, max_iterations, int(max_nodes), callback)
+        if smoothing not in ("hybrid", "attractive"):
+            raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
+        mesh = _injection(dom, h, fixed, max_iterations, int(max_nodes), smoothing, callback)
     else:
         raise ValueError(f"method must be 'injection' or 'distmesh', got {method!r}")
     if not mesh.stats.converged:
@@ -126,6 +135,7 @@ def _injection(
     fixed: FloatArray,
     max_iterations: int | None,
     max_nodes: int,
+    smoothing: Smoothing,
     callback: Callback | None,
 ) -> Mesh:
     """Algorithm 1 of the paper."""
@@ -147,11 +157,22 @@ def _injection(
     t = time.perf_counter()
 
     # Step 3: Delaunay triangulation and attractive smoothing (Eq. 3.4).
+    # Boundary nodes other than corners slide along the boundary between their neighbours.
+    free_b = np.flatnonzero(~bnd.fixed)
+    prev = np.empty(len(bnd.points), dtype=np.intp)
+    prev[bnd.edges[:, 1]] = bnd.edges[:, 0]
+    sliding = np.stack([free_b, prev[free_b], bnd.edges[free_b, 1]], axis=1)
     result = smooth(
-        domain, h, points, n_fixed=len(seeds), max_iterations=max_iterations, callback=callback
+        domain, h, points, n_fixed=len(seeds), sliding=sliding, smoothing=smoothing,
+        max_iterations=max_iterations, callback=callback,
     )
     seconds["smoothing"] = time.perf_counter() - t
     edges = boundary_edges(result.triangles)
+    # Tag each boundary edge with the loop of its first node (boundary nodes come first; nodes
+    # added by repair have kept == -1 and are interior).
+    loop_of = np.full(len(points) + 1, -1)
+    loop_of[: len(bnd.node_loop)] = bnd.node_loop
+    tags = loop_of[result.kept][edges[:, 0]]
 
     stats = MeshStats(
         method="injection",
@@ -166,7 +187,7 @@ def _injection(
         points=result.points,
         triangles=result.triangles,
         boundary_edges=edges,
-        boundary_tags=bnd.node_loop[edges[:, 0]] if len(bnd.node_loop) else np.zeros(len(edges), int),
+        boundary_tags=tags,
         size=h,
         stats=stats,
     )

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional
+from typing import Any
 
 logger = logging.getLogger("injmesh")
 
@@ -27,7 +28,7 @@ class Progress:
 
     stage: str
     step: int
-    total: Optional[int] = None
+    total: int | None = None
     info: dict[str, Any] = field(default_factory=dict)
 
 

@@ -7,14 +7,14 @@ array of points and returns ``(n,)`` positive lengths, in the units of the domai
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Union
 
 import numpy as np
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
-SizeLike = Union[float, int, Callable[[FloatArray], FloatArray]]
+SizeLike = float | int | Callable[[FloatArray], FloatArray]
 
 
 class SizeError(ValueError):

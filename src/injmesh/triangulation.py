@@ -5,7 +5,7 @@ This module is the single place where SciPy's Qhull is called.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,6 +15,10 @@ from .quality import signed_areas
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
+
+
+#: Triangles with area below FLAT * (longest edge)^2 are degenerate (an equilateral one has 0.43).
+FLAT = 1e-9
 
 
 class TriangulationError(ValueError):
@@ -44,7 +48,13 @@ def inside_triangles(
     (the paper's L-shape) must not cut the mesh there.
     """
     centroids = points[triangles].mean(axis=1)
-    return triangles[sdf(centroids) <= 0]
+    keep = sdf(centroids) <= 0
+    # Qhull may return flat triangles of collinear nodes on a concave straight boundary: their
+    # centroid is on the boundary, so the sign test alone would keep them.
+    e = points[triangles] - points[triangles][:, [1, 2, 0]]
+    longest2 = np.max(np.einsum("mki,mki->mk", e, e), axis=1)
+    keep &= np.abs(signed_areas(points, triangles)) > FLAT * longest2
+    return triangles[keep]
 
 
 def boundary_edges(triangles: IntArray) -> IntArray:

@@ -110,6 +110,19 @@ class Domain(ABC):
             p[active] -= (d / g2)[:, None] * g
         return p
 
+    def on_boundary(self, p: FloatArray) -> NDArray[np.bool_]:
+        """Whether each point is on the boundary: d is near zero *and* changes sign around it.
+
+        The sign test matters for functions such as the paper's L-shape, which vanish along an
+        interior line.
+        """
+        p = as_points(p)
+        r = tol.ON_BOUNDARY * self.diameter
+        ang = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+        ring = (p[:, None, :] + r * np.stack([np.cos(ang), np.sin(ang)], axis=1)).reshape(-1, 2)
+        d = self.sdf(ring).reshape(len(p), -1)
+        return (np.abs(self.sdf(p)) < r) & (d.min(axis=1) <= 0) & (d.max(axis=1) > 0)
+
     def boundary_loops(self, spacing: float) -> list[FloatArray]:
         """Closed polylines of the boundary with vertices at most about ``spacing`` apart.
 

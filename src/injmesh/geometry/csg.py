@@ -54,8 +54,7 @@ class _Combination(Domain):
         c = np.concatenate(cands) if cands else np.empty((0, 2))
         if len(c) == 0:
             return c
-        c = c[np.abs(self.sdf(c)) < tol.ON_BOUNDARY * self.diameter]
-        return _dedupe(c, 1e-9 * self.diameter)
+        return _dedupe(c[self.on_boundary(c)], 1e-9 * self.diameter)
 
 
 class Union(_Combination):

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .. import _tolerances as tol
 from .base import BBox, Domain, FloatArray, GeometryError, as_points
-from .tracing import detect_corners, trace_loops
+from .tracing import detect_corners, grid_spacing, trace_loops
 
 
 class Implicit(Domain):
@@ -54,6 +53,7 @@ class Implicit(Domain):
         self.fixed_points = (
             np.empty((0, 2)) if fixed_points is None else as_points(fixed_points).copy()
         )
+        self._corners: FloatArray | None = None
         self._probe()
 
     def __repr__(self) -> str:
@@ -86,19 +86,19 @@ class Implicit(Domain):
         return d
 
     def corners(self) -> FloatArray:
-        spacing = self.diameter / 1000
-        found = [detect_corners(loop, spacing) for loop in self.boundary_loops(spacing)]
-        c = np.concatenate(found) if found else np.empty((0, 2))
-        on = np.abs(self.sdf(self.fixed_points)) < tol.ON_BOUNDARY * self.diameter if len(
-            self.fixed_points) else np.zeros(0, dtype=bool)
-        fixed = self.fixed_points[on]
-        if len(c) and len(fixed):
-            # A user's point near a detected corner is the exact corner.
-            dist = np.hypot(*(c[:, None, :] - fixed[None, :, :]).transpose(2, 0, 1))
-            c = c[dist.min(axis=1) > 4 * spacing]
-        if len(c):
-            c = self.project(c)
-        return np.concatenate([fixed, c])
+        """Sharp corners found on the traced boundary, refined, plus the boundary fixed points."""
+        if self._corners is None:
+            spacing = grid_spacing(self._bbox, np.inf)
+            found = [detect_corners(loop, spacing, refine=self) for loop in self.boundary_loops(spacing)]
+            c = np.concatenate(found) if found else np.empty((0, 2))
+            fixed = self.fixed_points[self.on_boundary(self.fixed_points)] if len(
+                self.fixed_points) else self.fixed_points
+            if len(c) and len(fixed):
+                # A user's point near a detected corner is the exact corner.
+                dist = np.hypot(*(c[:, None, :] - fixed[None, :, :]).transpose(2, 0, 1))
+                c = c[dist.min(axis=1) > 2 * spacing]
+            self._corners = np.concatenate([fixed, c])
+        return self._corners.copy()
 
     def boundary_loops(self, spacing: float) -> list[FloatArray]:
         loops = trace_loops(self.sdf, self._bbox, spacing)

@@ -6,7 +6,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from .. import _tolerances as tol
 from .base import BBox, Domain, FloatArray, GeometryError, as_points
@@ -233,7 +233,7 @@ def _check_simple(v: FloatArray) -> None:
     o4 = orient(a[j], b[j], b[i])
     cross = (o1 * o2 < 0) & (o3 * o4 < 0)
     # Collinear overlaps and touching vertices also break simplicity.
-    def on_seg(p: FloatArray, q: FloatArray, r: FloatArray) -> FloatArray:
+    def on_seg(p: FloatArray, q: FloatArray, r: FloatArray) -> NDArray[np.bool_]:
         return (np.minimum(p[:, 0], q[:, 0]) <= r[:, 0]) & (r[:, 0] <= np.maximum(p[:, 0], q[:, 0])) & (
             np.minimum(p[:, 1], q[:, 1]) <= r[:, 1]) & (r[:, 1] <= np.maximum(p[:, 1], q[:, 1]))
 

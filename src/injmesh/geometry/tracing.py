@@ -7,14 +7,14 @@ is zero along an interior line (the paper's L-shape) yields no spurious curve th
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from .. import _tolerances as tol
-from .base import BBox, FloatArray, GeometryError
+from .base import BBox, Domain, FloatArray, GeometryError
 
 # Cell corners in counter-clockwise order and the cell edges between them:
 # corner 0 (i, j), 1 (i+1, j), 2 (i+1, j+1), 3 (i, j+1); edge k joins corner k and k+1.
@@ -83,8 +83,8 @@ def sample_grid(
     xs = x0 - spacing + spacing * np.arange(nx)
     ys = y0 - spacing + spacing * np.arange(ny)
     X, Y = np.meshgrid(xs, ys)
-    v = np.asarray(d(np.stack([X.ravel(), Y.ravel()], axis=1)), dtype=float)
-    return xs, ys, v.reshape(ny, nx)
+    v = np.asarray(d(np.stack([X.ravel(), Y.ravel()], axis=1)), dtype=np.float64)
+    return xs.astype(np.float64), ys.astype(np.float64), v.reshape(ny, nx)
 
 
 def check_box(values: FloatArray, bbox: BBox, diameter: float) -> None:
@@ -214,20 +214,21 @@ def order_cycles(succ: np.ndarray) -> list[np.ndarray]:
     return cycles
 
 
-def detect_corners(loop: FloatArray, spacing: float) -> FloatArray:
+def detect_corners(loop: FloatArray, spacing: float, refine: Domain | None = None) -> FloatArray:
     """Sharp corners of a closed, projected boundary polyline.
 
     The turning angle is measured over chords of about 3 and 6 grid spacings.  At a corner both
     chords see the same turn; on a smooth curve the longer chord sees twice the turn.  A vertex
     is a corner where the short-chord turn exceeds ``CORNER_ANGLE``, is at least 3/4 of the
-    long-chord turn and is a local maximum; its position is the intersection of the tangent
-    lines fitted on either side.
+    long-chord turn and is a local maximum.  With ``refine``, the corner is then located by
+    bisection along the boundary between a vertex on either side: the half whose end has the
+    closer gradient direction keeps that end, so the bracket closes on the jump of grad d.
     """
     n = len(loop)
     if n < 16:
         return np.empty((0, 2))
     seg = np.hypot(*(np.roll(loop, -1, axis=0) - loop).T)
-    k = max(2, int(round(3 * spacing / max(np.median(seg), 1e-300))))
+    k = max(2, int(round(3 * spacing / max(float(np.median(seg)), 1e-300))))
     if 4 * k >= n:
         return np.empty((0, 2))
     idx = np.arange(n)
@@ -246,15 +247,18 @@ def detect_corners(loop: FloatArray, spacing: float) -> FloatArray:
     i = np.flatnonzero(peak)
     if len(i) == 0:
         return np.empty((0, 2))
-    p1, p2 = loop[(i - 3 * k) % n], loop[(i - k) % n]
-    q1, q2 = loop[(i + k) % n], loop[(i + 3 * k) % n]
-    r, s = p2 - p1, q2 - q1
-    den = r[:, 0] * s[:, 1] - r[:, 1] * s[:, 0]
-    qp = q1 - p1
-    tt = (qp[:, 0] * s[:, 1] - qp[:, 1] * s[:, 0]) / np.where(den != 0, den, 1.0)
-    corner = p1 + tt[:, None] * r
-    # Fall back to the loop vertex when the tangents are nearly parallel or the fit strays.
-    far = np.hypot(*(corner - loop[i]).T) > 3 * k * float(np.median(seg))
-    bad = (np.abs(den) < 1e-12 * np.hypot(*r.T) * np.hypot(*s.T)) | far
-    corner[bad] = loop[i[bad]]
-    return corner
+    if refine is None:
+        return loop[i]
+    a, b = loop[(i - k) % n], loop[(i + k) % n]
+    ga, gb = _unit(refine.gradient(a)), _unit(refine.gradient(b))
+    for _ in range(50):
+        m = refine.project(0.5 * (a + b))
+        gm = _unit(refine.gradient(m))
+        side_a = np.sum(gm * ga, axis=1) >= np.sum(gm * gb, axis=1)
+        a = np.where(side_a[:, None], m, a)
+        b = np.where(side_a[:, None], b, m)
+    return refine.project(0.5 * (a + b))
+
+
+def _unit(v: FloatArray) -> FloatArray:
+    return v / np.maximum(np.hypot(*v.T), 1e-300)[:, None]

@@ -1,0 +1,276 @@
+"""Step 1 of Algorithm 1: meshing of the boundary (paper Section 3.1, Algorithms 2 and 3).
+
+Every boundary curve (outer boundary and each hole) is partitioned into segments that follow h:
+
+1. **Injection-projection** (Eq. 3.1, 3.2, Algorithm 2).  Starting from the domain's boundary
+   loops with the corners inserted, every segment longer than ``BOUNDARY_REFINE * h`` receives a
+   point at the h-weighted mean of its end points (3.1), projected onto the boundary (3.2); this
+   repeats until no segment is that long.  *Stopping condition*: the curve is then resolved to a
+   quarter of the local h, which is what the next choice needs.
+2. **Node count.**  Between consecutive fixed points (sharp corners, curve end points and user
+   fixed points; a closed smooth curve gets one anchor) the curve's h-length ``S = int ds / h``
+   is measured on the refined polyline and ``n = max(1, round(S))`` segments are laid out at equal
+   h-length, then projected.  This is the choice the paper leaves open: Algorithm 2's bisection
+   alone yields powers of two per initial segment, up to 40 % off the count h implies.
+3. **1-D balancing** (Eq. 3.3, Algorithm 3).  Each free node moves to the h-weighted mean of the
+   midpoints of its two segments and is projected back.  *Stopping condition*: no node moves
+   more than ``BALANCE_TOL * h``, or ``BALANCE_ITERATIONS`` sweeps.
+
+Loops come out with the domain on their left (outer boundary counter-clockwise, holes
+clockwise), largest enclosed area first; that order is the boundary tag.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import _tolerances as tol
+from .geometry import Domain, GeometryError
+from .geometry.tracing import grid_spacing, sample_grid
+from .progress import Callback, report
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+SizeFn = Callable[[FloatArray], FloatArray]
+
+
+@dataclass(frozen=True)
+class BoundaryMesh:
+    """Nodes on the boundary, loop by loop.
+
+    Attributes
+    ----------
+    points : (nb, 2) array
+        Boundary nodes; each loop's nodes are contiguous and in order.
+    edges : (nb, 2) int array
+        Segment ``k`` joins node ``edges[k, 0]`` to ``edges[k, 1]`` with the domain on its left.
+    node_loop : (nb,) int array
+        Loop (boundary tag) of each node.
+    fixed : (nb,) bool array
+        Nodes that were held fixed (corners, anchors, user points).
+    """
+
+    points: FloatArray
+    edges: IntArray
+    node_loop: IntArray
+    fixed: NDArray[np.bool_]
+
+
+def estimate_nodes(domain: Domain, h: SizeFn, cells: int = 128) -> tuple[float, float]:
+    """Smallest h inside the domain and the node count h implies (equilateral packing).
+
+    Sampled on a ``cells x cells`` grid over the bounding box: an estimate used for the node
+    budget and for the boundary tracing resolution, not a bound.
+    """
+    x0, y0, x1, y1 = domain.bbox
+    spacing = max(x1 - x0, y1 - y0) / cells
+    xs, ys, d = sample_grid(domain.sdf, domain.bbox, spacing)
+    X, Y = np.meshgrid(xs, ys)
+    inside = d.ravel() <= 0
+    if not inside.any():
+        raise GeometryError(f"the domain is empty inside its bounding box {domain.bbox}")
+    hv = h(np.stack([X.ravel()[inside], Y.ravel()[inside]], axis=1))
+    # One node per equilateral-triangle pair: area sqrt(3)/2 h^2 per node.
+    count = float(np.sum(spacing * spacing / (np.sqrt(3) / 2 * hv * hv)))
+    return float(hv.min()), count
+
+
+def mesh_boundary(
+    domain: Domain,
+    h: SizeFn,
+    fixed_points: FloatArray,
+    *,
+    max_nodes: int,
+    callback: Callback | None = None,
+) -> BoundaryMesh:
+    """Partition every boundary curve into segments that follow h (Step 1).
+
+    Parameters
+    ----------
+    domain : Domain
+    h : callable
+        Validated size function.
+    fixed_points : (k, 2) array
+        User points; those on the boundary are kept as nodes and never move.
+    max_nodes : int
+        Node budget for the whole mesh, checked here before any work that scales with it.
+
+    Returns
+    -------
+    BoundaryMesh
+    """
+    from .pipeline import NodeBudgetError
+
+    h_min, expected = estimate_nodes(domain, h)
+    if expected > max_nodes:
+        raise NodeBudgetError(
+            f"the size function implies about {expected:.3g} nodes, more than max_nodes={max_nodes}"
+        )
+    diam = domain.diameter
+    on = tol.ON_BOUNDARY * diam
+    loops = domain.boundary_loops(grid_spacing(domain.bbox, h_min))
+    if not loops:
+        raise GeometryError("the domain has no boundary inside its bounding box")
+    loops.sort(key=lambda lp: -abs(_area(lp)))
+
+    corners = domain.corners()
+    if len(fixed_points):
+        dfix = domain.sdf(fixed_points)
+        if np.any(dfix > on):
+            i = int(np.argmax(dfix > on))
+            raise ValueError(f"fixed point {tuple(fixed_points[i])} lies outside the domain")
+        corners = np.concatenate([corners, fixed_points[np.abs(dfix) <= on]])
+
+    pts, fixed, loop_id = [], [], []
+    for k, loop in enumerate(loops):
+        p, f = _insert_corners(loop, corners, on, diam)
+        p, f = _refine(domain, h, p, f)
+        p, f = _select(domain, h, p, f)
+        pts.append(p)
+        fixed.append(f)
+        loop_id.append(np.full(len(p), k))
+        report(callback, "boundary", k + 1, len(loops), nodes=len(p))
+    points = np.concatenate(pts)
+    fixed_mask = np.concatenate(fixed)
+    node_loop = np.concatenate(loop_id)
+    prev, nxt = _neighbours(node_loop)
+    points = _balance(domain, h, points, fixed_mask, prev, nxt)
+    edges = np.stack([np.arange(len(points)), nxt], axis=1)
+    return BoundaryMesh(points, edges, node_loop, fixed_mask)
+
+
+def _area(loop: FloatArray) -> float:
+    x, y = loop[:, 0], loop[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def _neighbours(node_loop: IntArray) -> tuple[IntArray, IntArray]:
+    """Previous and next node of each node along its (closed) loop."""
+    idx = np.arange(len(node_loop))
+    start = np.flatnonzero(np.r_[True, node_loop[1:] != node_loop[:-1]])
+    end = np.r_[start[1:], len(node_loop)] - 1
+    first = np.repeat(start, end - start + 1)
+    last = np.repeat(end, end - start + 1)
+    nxt = np.where(idx == last, first, idx + 1)
+    prev = np.where(idx == first, last, idx - 1)
+    return prev, nxt
+
+
+def _insert_corners(
+    loop: FloatArray, corners: FloatArray, on: float, diam: float
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Insert the corners that lie on this loop as fixed vertices; fix one anchor if none."""
+    n = len(loop)
+    fixed = np.zeros(n, dtype=bool)
+    if len(corners):
+        a, b = loop, np.roll(loop, -1, axis=0)
+        ab = b - a
+        ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+        q = corners[:, None, :]
+        t = np.clip(np.einsum("cnk,nk->cn", q - a, ab) / ab2, 0, 1)
+        dist = np.hypot(*(q - (a + t[..., None] * ab)).transpose(2, 0, 1))
+        seg = np.argmin(dist, axis=1)
+        rows = np.arange(len(corners))
+        # A corner belongs to this loop when the traced polyline passes close to it; traced
+        # polylines cut corners by up to about a grid cell, hence the loose radius.
+        mine = dist[rows, seg] <= max(on, 2.0 * float(np.sqrt(ab2.max())))
+        if mine.any():
+            seg, tt, c = seg[mine], t[rows, seg][mine], corners[mine]
+            # Vertices that coincide with a corner become that corner.
+            key = np.concatenate([np.arange(n, dtype=float), seg + np.clip(tt, 1e-9, 1 - 1e-9)])
+            allp = np.concatenate([loop, c])
+            allf = np.concatenate([fixed, np.ones(len(c), dtype=bool)])
+            order = np.argsort(key, kind="stable")
+            loop, fixed = allp[order], allf[order]
+            # Drop free vertices within a tiny distance of a fixed one (duplicates).
+            nb = np.roll(np.arange(len(loop)), -1)
+            pb = np.roll(np.arange(len(loop)), 1)
+            close_n = np.hypot(*(loop - loop[nb]).T) < 1e-9 * diam
+            close_p = np.hypot(*(loop - loop[pb]).T) < 1e-9 * diam
+            dup = ~fixed & ((close_n & fixed[nb]) | (close_p & fixed[pb]))
+            # Fixed duplicates of fixed points (a corner listed twice): keep the first.
+            dup |= fixed & close_p & fixed[pb] & (np.arange(len(loop)) > 0)
+            loop, fixed = loop[~dup], fixed[~dup]
+    if not fixed.any():
+        # A closed smooth curve: fix one point so balancing cannot rotate the nodes (Sec. 3.1).
+        fixed[np.lexsort((loop[:, 1], loop[:, 0]))[0]] = True
+    # Start each loop at a fixed vertex.
+    first = int(np.argmax(fixed))
+    return np.roll(loop, -first, axis=0), np.roll(fixed, -first)
+
+
+def _refine(
+    domain: Domain, h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_]
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Algorithm 2: inject h-weighted midpoints (3.1), project them (3.2), until resolved."""
+    for _ in range(40):
+        q = np.roll(p, -1, axis=0)
+        hp, hq = h(p), h(q)
+        length = np.hypot(*(q - p).T)
+        split = length > tol.BOUNDARY_REFINE * np.minimum(hp, hq)
+        if not split.any():
+            break
+        wp, wq = 1.0 / hp[split], 1.0 / hq[split]
+        new = (p[split] * wp[:, None] + q[split] * wq[:, None]) / (wp + wq)[:, None]  # Eq. 3.1
+        new = domain.project(new)  # Eq. 3.2
+        key = np.concatenate([np.arange(len(p), dtype=float), np.flatnonzero(split) + 0.5])
+        order = np.argsort(key, kind="stable")
+        p = np.concatenate([p, new])[order]
+        fixed = np.concatenate([fixed, np.zeros(len(new), dtype=bool)])[order]
+    return p, fixed
+
+
+def _select(
+    domain: Domain, h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_]
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Lay ``round(S)`` segments at equal h-length between consecutive fixed vertices."""
+    closed = np.concatenate([p, p[:1]])
+    seg = np.diff(closed, axis=0)
+    ds = np.hypot(*seg.T) / h(0.5 * (closed[1:] + closed[:-1]))
+    s = np.concatenate([[0.0], np.cumsum(ds)])
+    fixed_idx = np.r_[np.flatnonzero(fixed), len(p)]  # fixed[0] is True; len(p) closes the loop
+    s_start = s[fixed_idx[:-1]]
+    span = s[fixed_idx[1:]] - s_start
+    count = np.maximum(1, np.rint(span).astype(int))
+    if count.sum() < 3:  # a loop needs three nodes at least
+        count[np.argmax(span)] += 3 - count.sum()
+    piece = np.repeat(np.arange(len(count)), count)
+    k = np.arange(len(piece)) - np.repeat(np.cumsum(count) - count, count)
+    target = s_start[piece] + k * span[piece] / count[piece]
+    out = np.stack([np.interp(target, s, closed[:, 0]), np.interp(target, s, closed[:, 1])], axis=1)
+    new_fixed = k == 0
+    out[new_fixed] = p[fixed_idx[:-1]]
+    free = ~new_fixed
+    if free.any():
+        out[free] = domain.project(out[free])
+    return out, new_fixed
+
+
+def _balance(
+    domain: Domain,
+    h: SizeFn,
+    p: FloatArray,
+    fixed: NDArray[np.bool_],
+    prev: IntArray,
+    nxt: IntArray,
+) -> FloatArray:
+    """Algorithm 3: move each free node between the midpoints of its segments (Eq. 3.3)."""
+    free = np.flatnonzero(~fixed)
+    if len(free) == 0:
+        return p
+    p = p.copy()
+    for _ in range(tol.BALANCE_ITERATIONS):
+        m = 0.5 * (p + p[nxt])  # midpoint of segment (i, next i)
+        w = 1.0 / h(m)
+        a, b = prev[free], free  # the segments before and after each free node
+        new = (m[a] * w[a, None] + m[b] * w[b, None]) / (w[a] + w[b])[:, None]  # Eq. 3.3
+        new = domain.project(new)  # Eq. 3.2
+        move = np.hypot(*(new - p[free]).T) / (1.0 / w[b])
+        p[free] = new
+        if move.max() < tol.BALANCE_TOL:
+            break
+    return p

@@ -1,0 +1,598 @@
+"""Reading and writing meshes: Gmsh, VTK, XDMF and Medit through meshio, and a native ``.npz``.
+
+The format follows the file's extension:
+
+========  ===================  ==========================================================
+``.msh``  Gmsh 4.1 (ASCII)     ``file_format="gmsh22"`` writes the older MSH 2.2 instead
+``.vtu``  VTK XML unstructured
+``.xdmf`` XDMF                 data inline (XML), so no companion HDF5 file is needed
+``.mesh`` Medit
+``.npz``  injmesh native       ``points``, ``triangles``, ``boundary_edges``,
+                               ``boundary_tags``; needs only NumPy
+========  ===================  ==========================================================
+
+Boundary components
+-------------------
+Besides the triangles, every file carries the boundary edges as ``line`` cells, one cell block
+per boundary component, tagged with ``boundary_tags + 1``: 1 is the outer boundary, ``k + 1``
+the k-th further loop.  The triangles are tagged ``max(boundary_tags) + 2``, so every tag is
+distinct across dimensions.  In ``.msh`` files the tags are Gmsh physical groups named
+``"domain"``, ``"outer boundary"``, ``"hole 1"``, ``"hole 2"``, ... (a further loop running
+counter-clockwise, the outside of another component, is named ``"outer boundary k"``); VTU and
+XDMF files store them as the integer cell data ``cell_tags``, Medit files as ``medit:ref``.
+
+Writes are atomic: the file is written under a temporary name in the target directory and
+renamed over the target, so a failed write leaves nothing behind and never a half-written file.
+
+Examples
+--------
+>>> import tempfile, pathlib
+>>> import numpy as np
+>>> from injmesh import Mesh
+>>> from injmesh.io import read, write
+>>> from injmesh.triangulation import boundary_edges, delaunay
+>>> p = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]], float)
+>>> t = delaunay(p)
+>>> e = boundary_edges(t)
+>>> mesh = Mesh(p, t, e, np.zeros(len(e), int))
+>>> with tempfile.TemporaryDirectory() as tmp:
+...     write(mesh, pathlib.Path(tmp) / "square.npz")
+...     back = read(pathlib.Path(tmp) / "square.npz")
+>>> back.n_triangles
+4
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .quality import signed_areas
+from .triangulation import boundary_edges as _boundary_edges
+
+if TYPE_CHECKING:
+    from .mesh import Mesh
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+
+MISSING_MESHIO = "reading and writing this format needs meshio: pip install 'injmesh[io]'"
+
+#: Extension -> format written by default.
+EXTENSIONS: dict[str, str] = {
+    ".msh": "gmsh",
+    ".vtu": "vtu",
+    ".xdmf": "xdmf",
+    ".mesh": "medit",
+    ".npz": "npz",
+}
+
+#: Formats accepted by ``write(..., file_format=...)``.
+FORMATS: tuple[str, ...] = ("gmsh", "gmsh22", "vtu", "xdmf", "medit", "npz")
+
+
+class MeshFileError(ValueError):
+    """A file cannot be read as a triangular mesh, or a format is not supported."""
+
+
+def _meshio() -> Any:
+    try:
+        import meshio
+    except ImportError as exc:
+        raise ImportError(MISSING_MESHIO) from exc
+    return meshio
+
+
+def format_for(path: str | os.PathLike[str], file_format: str | None = None) -> str:
+    """The format :func:`write` uses for ``path``: one of :data:`FORMATS`.
+
+    Raises
+    ------
+    MeshFileError
+        Unknown ``file_format``, or an extension not in :data:`EXTENSIONS`.
+
+    Examples
+    --------
+    >>> format_for("out.msh"), format_for("out.msh", "gmsh22"), format_for("out.vtu")
+    ('gmsh', 'gmsh22', 'vtu')
+    """
+    path = Path(path)
+    if file_format is not None:
+        if file_format not in FORMATS:
+            raise MeshFileError(
+                f"unknown file_format {file_format!r}; choose one of {', '.join(FORMATS)}"
+            )
+        return file_format
+    ext = path.suffix.lower()
+    if ext not in EXTENSIONS:
+        raise MeshFileError(
+            f"cannot tell the mesh format of {str(path)!r} from its extension {ext or '(none)'!r}; "
+            f"supported: {', '.join(EXTENSIONS)}"
+        )
+    return EXTENSIONS[ext]
+
+
+def boundary_names(
+    boundary_edges: IntArray, boundary_tags: IntArray, points: FloatArray
+) -> dict[int, str]:
+    """Name each boundary component: ``"outer boundary"``, ``"hole 1"``, ...
+
+    Tag 0 is the outer boundary.  Another tag is a hole when its edges run clockwise (negative
+    enclosed area, since edges keep the domain on their left) and the outer boundary of a further
+    component when they run counter-clockwise.
+
+    Parameters
+    ----------
+    boundary_edges : (k, 2) int array
+        Oriented boundary edges.
+    boundary_tags : (k,) int array
+        Component of each edge.
+    points : (n, 2) float array
+        Node coordinates.
+
+    Returns
+    -------
+    dict
+        Tag -> name, for every tag present.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> p = np.array([[0, 0], [4, 0], [4, 4], [0, 4], [1, 1], [1, 2], [2, 2], [2, 1]], float)
+    >>> e = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4]])
+    >>> boundary_names(e, np.repeat([0, 1], 4), p)
+    {0: 'outer boundary', 1: 'hole 1'}
+    """
+    tags = np.asarray(boundary_tags, dtype=np.intp)
+    if len(tags) == 0:
+        return {}
+    a, b = points[boundary_edges[:, 0]], points[boundary_edges[:, 1]]
+    area = np.bincount(tags, weights=0.5 * (a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1]))
+    names = {}
+    for tag in np.unique(tags).tolist():
+        if tag == 0:
+            names[tag] = "outer boundary"
+        elif area[tag] < 0:
+            names[tag] = f"hole {tag}"
+        else:
+            names[tag] = f"outer boundary {tag}"
+    return names
+
+
+def write(mesh: Mesh, path: str | os.PathLike[str], *, file_format: str | None = None) -> None:
+    """Write a mesh, choosing the format from the extension (see the module notes).
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The mesh.
+    path : str or path-like
+        Target file; it is replaced atomically if it exists.
+    file_format : {"gmsh", "gmsh22", "vtu", "xdmf", "medit", "npz"}, optional
+        Overrides the extension: ``"gmsh"`` is MSH 4.1, ``"gmsh22"`` MSH 2.2.
+
+    Raises
+    ------
+    MeshFileError
+        Unknown extension or format (a ``ValueError``).
+    ImportError
+        meshio is needed for the format and missing.
+    OSError
+        The directory does not exist or is not writable.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import numpy as np
+    >>> from injmesh import Mesh
+    >>> mesh = Mesh(np.array([[0, 0], [1, 0], [0, 1]], float), np.array([[0, 1, 2]]),
+    ...             np.array([[0, 1], [1, 2], [2, 0]]), np.zeros(3, int))
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     write(mesh, pathlib.Path(tmp) / "triangle.msh")
+    ...     sorted(p.name for p in pathlib.Path(tmp).iterdir())
+    ['triangle.msh']
+    """
+    path = Path(path)
+    fmt = format_for(path, file_format)
+    meshio = None if fmt == "npz" else _meshio()
+    parent = path.parent
+    if not parent.is_dir():
+        raise FileNotFoundError(f"directory {str(parent)!r} does not exist")
+    if path.is_dir():
+        raise IsADirectoryError(f"{str(path)!r} is a directory")
+    # A hidden sibling with the same extension (meshio and XDMF look at it), renamed at the end.
+    tmp = parent / f".{path.stem}.{secrets.token_hex(6)}.tmp{path.suffix}"
+    try:
+        if fmt == "npz":
+            with open(tmp, "xb") as fh:
+                np.savez_compressed(
+                    fh,
+                    points=np.asarray(mesh.points, dtype=float),
+                    triangles=np.asarray(mesh.triangles, dtype=np.int64),
+                    boundary_edges=np.asarray(mesh.boundary_edges, dtype=np.int64),
+                    boundary_tags=np.asarray(mesh.boundary_tags, dtype=np.int64),
+                )
+        else:
+            _write_meshio(meshio, mesh, tmp, fmt)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+
+
+def _write_meshio(meshio: Any, mesh: Mesh, tmp: Path, fmt: str) -> None:
+    points = np.asarray(mesh.points, dtype=np.float64)
+    triangles = np.asarray(mesh.triangles, dtype=np.int64)
+    edges = np.asarray(mesh.boundary_edges, dtype=np.int64).reshape(-1, 2)
+    tags = np.asarray(mesh.boundary_tags, dtype=np.int64).reshape(-1)
+    names = boundary_names(edges, tags, points)
+    loop_tags = sorted(names)
+    domain_tag = (max(loop_tags) + 2) if loop_tags else 1
+
+    cells: list[tuple[str, NDArray[np.int64]]] = [("triangle", triangles)]
+    block_tags = [domain_tag]
+    for tag in loop_tags:
+        cells.append(("line", edges[tags == tag]))
+        block_tags.append(tag + 1)
+    per_cell = [
+        np.full(len(c), t, dtype=np.int64) for (_, c), t in zip(cells, block_tags, strict=True)
+    ]
+
+    if fmt in ("gmsh", "gmsh22"):
+        # Entities: the 2-D surface 1 and one 1-D curve per boundary component.
+        geometrical = [np.full(len(c[1]), 1 if i == 0 else t, dtype=np.int64)
+                       for i, (c, t) in enumerate(zip(cells, block_tags, strict=True))]
+        field_data = {"domain": np.array([domain_tag, 2])}
+        field_data.update({names[t]: np.array([t + 1, 1]) for t in loop_tags})
+        cell_data = {"gmsh:physical": per_cell, "gmsh:geometrical": geometrical}
+        point_data = {}
+        if fmt == "gmsh":
+            # MSH 4 groups nodes by entity: interior nodes on the surface, the others on a curve.
+            dim_tags = np.tile(np.array([2, 1], dtype=np.int64), (len(points), 1))
+            if len(edges):
+                dim_tags[edges[:, 0], 0] = 1
+                dim_tags[edges[:, 0], 1] = tags + 1
+            # meshio writes an entity's physical group only if some node lies on the entity.
+            for (_, data), tag in zip(cells, block_tags, strict=True):
+                dim = 2 if data.shape[1] == 3 else 1
+                entity = 1 if dim == 2 else tag
+                if not np.any((dim_tags[:, 0] == dim) & (dim_tags[:, 1] == entity)):
+                    dim_tags[data[0, 0]] = (dim, entity)
+            point_data["gmsh:dim_tags"] = dim_tags
+        out = meshio.Mesh(points, cells, point_data=point_data, cell_data=cell_data,
+                          field_data=field_data)
+        meshio.write(tmp, out, file_format=fmt, binary=False)
+    elif fmt == "medit":
+        out = meshio.Mesh(points, cells, cell_data={"medit:ref": per_cell})
+        meshio.write(tmp, out, file_format="medit")
+    elif fmt == "xdmf":
+        _write_xdmf(tmp, points, cells, np.concatenate(per_cell))
+    else:
+        # VTK wants 3-D points; pad here rather than let meshio warn on stderr.
+        points3 = np.column_stack([points, np.zeros(len(points))])
+        out = meshio.Mesh(points3, cells, cell_data={"cell_tags": per_cell})
+        meshio.write(tmp, out, file_format=fmt)
+
+
+# XDMF is written here, not by meshio: meshio's XDMF writer and reader import h5py even for
+# data stored inline as XML, and h5py is not a dependency.  The layout is meshio's (XDMF 3,
+# "Mixed" topology when lines accompany the triangles), so meshio, ParaView and VisIt read it.
+_XDMF_TRIANGLE, _XDMF_POLYLINE = 4, 2
+
+
+def _xml_numbers(a: NDArray[Any]) -> str:
+    """Rows of ``a`` as text, one row a line; floats in their shortest round-trip form."""
+    rows = np.atleast_2d(a).astype(str).tolist()
+    return "\n" + "\n".join(map(" ".join, rows)) + "\n"
+
+
+def _write_xdmf(
+    tmp: Path,
+    points: FloatArray,
+    cells: list[tuple[str, NDArray[np.int64]]],
+    tags: NDArray[np.int64],
+) -> None:
+    import xml.etree.ElementTree as ET
+
+    root = ET.Element("Xdmf", Version="3.0")
+    grid = ET.SubElement(ET.SubElement(root, "Domain"), "Grid", Name="Grid")
+    geometry = ET.SubElement(grid, "Geometry", GeometryType="XY")
+    item = ET.SubElement(geometry, "DataItem", DataType="Float", Dimensions=f"{len(points)} 2",
+                         Format="XML", Precision="8")
+    item.text = _xml_numbers(points)
+    n_cells = sum(len(c) for _, c in cells)
+    # Each triangle is "4 a b c" and each line "2 2 i j": four integers per cell either way.
+    stream = np.concatenate([
+        np.column_stack([np.full(len(c), _XDMF_TRIANGLE), c]) if kind == "triangle"
+        else np.column_stack([np.full((len(c), 2), _XDMF_POLYLINE), c])
+        for kind, c in cells
+    ])
+    topology = ET.SubElement(grid, "Topology", TopologyType="Mixed", NumberOfElements=str(n_cells))
+    item = ET.SubElement(topology, "DataItem", DataType="Int", Dimensions=str(stream.size),
+                         Format="XML", Precision="8")
+    item.text = _xml_numbers(stream)
+    attribute = ET.SubElement(grid, "Attribute", Name="cell_tags", AttributeType="Scalar",
+                              Center="Cell")
+    item = ET.SubElement(attribute, "DataItem", DataType="Int", Dimensions=str(n_cells),
+                         Format="XML", Precision="8")
+    item.text = _xml_numbers(tags[:, None])
+    ET.ElementTree(root).write(tmp, encoding="utf-8", xml_declaration=True)
+
+
+def _read_xdmf(path: Path) -> tuple[FloatArray, IntArray, IntArray | None, IntArray | None] | None:
+    """Read an XDMF 3 file whose data is inline XML; ``None`` if it needs meshio (HDF5 data)."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.parse(path).getroot()
+    grid = root.find(".//Grid")
+    if root.tag != "Xdmf" or grid is None:
+        raise MeshFileError(f"{str(path)!r} is not an XDMF file with a Grid")
+    items = grid.findall(".//DataItem")
+    if any(i.get("Format", "XML") != "XML" or "Reference" in i.attrib for i in items):
+        return None
+
+    def numbers(parent: ET.Element | None, dtype: type) -> NDArray[Any]:
+        item = None if parent is None else parent.find("DataItem")
+        if item is None:
+            raise MeshFileError(f"{str(path)!r}: missing DataItem")
+        return np.array((item.text or "").split(), dtype=dtype)
+
+    geometry = grid.find("Geometry")
+    kind = "XYZ" if geometry is None else geometry.get("GeometryType", "XYZ")
+    if kind not in ("XY", "XYZ"):
+        return None
+    points = numbers(geometry, float).reshape(-1, len(kind))
+    topology = grid.find("Topology")
+    ttype = "" if topology is None else topology.get("TopologyType", "").lower()
+    if ttype == "triangle":
+        return points, numbers(topology, int).reshape(-1, 3), None, None
+    if ttype != "mixed":
+        raise MeshFileError(f"{str(path)!r}: topology {ttype or '(none)'!r} is not triangles")
+    stream = numbers(topology, int)
+    if stream.size % 4 or not np.all(np.isin(stream[::4], (_XDMF_TRIANGLE, _XDMF_POLYLINE))):
+        return None  # other cell kinds: leave the general case to meshio
+    rows = stream.reshape(-1, 4)
+    is_tri = rows[:, 0] == _XDMF_TRIANGLE
+    if np.any(rows[~is_tri, 1] != 2):
+        return None
+    tags = None
+    for attribute in grid.findall("Attribute"):
+        if attribute.get("Center") == "Cell" and attribute.get("Name") in _TAG_KEYS:
+            values = numbers(attribute, float)
+            if len(values) == len(rows) and np.all(values == np.round(values)):
+                tags = values.astype(np.intp)[~is_tri]
+                break
+    lines = rows[~is_tri, 2:]
+    if tags is None:
+        tags = np.zeros(len(lines), dtype=np.intp)
+    return points, rows[is_tri, 1:], lines, tags
+
+
+def read(path: str | os.PathLike[str]) -> Mesh:
+    """Read a triangular mesh from any file meshio reads, or from injmesh's ``.npz``.
+
+    Triangles are reoriented counter-clockwise and nodes no triangle uses are dropped.  Boundary
+    edges are recomputed from the triangles (oriented with the domain on their left) unless a
+    ``.npz`` carries them.  Boundary tags come from the file's ``line`` cells when it has integer
+    tags for them (``gmsh:physical``, ``cell_tags``, ``medit:ref``, ``gmsh:geometrical``): the
+    distinct values in increasing order become 0, 1, 2, ...; so a file written by
+    :func:`write` reads back with its tags.  Without line cells the boundary loops are found from
+    the edges: 0 is the loop enclosing the largest area, then the others by decreasing size.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+
+    Returns
+    -------
+    Mesh
+        With ``size=None``.
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    MeshFileError
+        The file cannot be parsed, has no triangles, or is not planar (a ``ValueError``).
+    ImportError
+        meshio is needed and missing.
+
+    Examples
+    --------
+    See the module example.
+    """
+    from .mesh import Mesh
+
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"no such file: {str(path)!r}")
+    if path.is_dir():
+        raise IsADirectoryError(f"{str(path)!r} is a directory")
+    lines: IntArray | None = None
+    line_tags: IntArray | None = None
+    if path.suffix.lower() == ".npz":
+        points, triangles, edges, tags = _read_npz(path)
+    else:
+        points, triangles, lines, line_tags = _read_meshio(path)
+        edges, tags = None, None
+
+    _validate(path, points, triangles)
+    points, triangles, index = _compact(points, triangles)
+    flip = signed_areas(points, triangles) < 0
+    triangles[flip] = triangles[flip][:, [0, 2, 1]]
+
+    if edges is not None and tags is not None and len(edges) == len(tags) and len(edges):
+        edges = index[edges]
+        if np.any(edges < 0):
+            raise MeshFileError(f"{str(path)!r}: boundary_edges refer to nodes no triangle uses")
+    else:
+        edges = _boundary_edges(triangles)
+        if lines is not None and line_tags is not None and len(lines):
+            ok = np.all((lines >= 0) & (lines < len(index)), axis=1)
+            tags = _tags_from_lines(edges, index[lines[ok]], line_tags[ok])
+        else:
+            tags = _loop_tags(points, edges)
+    return Mesh(points=points, triangles=triangles, boundary_edges=edges, boundary_tags=tags)
+
+
+def _read_npz(path: Path) -> tuple[FloatArray, IntArray, IntArray | None, IntArray | None]:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            missing = {"points", "triangles"} - set(data.files)
+            if missing:
+                raise MeshFileError(
+                    f"{str(path)!r} has no {' or '.join(sorted(missing))} array; "
+                    "an injmesh .npz holds points, triangles, boundary_edges, boundary_tags"
+                )
+            points = np.asarray(data["points"], dtype=float)
+            triangles = np.asarray(data["triangles"])
+            edges = np.asarray(data["boundary_edges"]) if "boundary_edges" in data.files else None
+            tags = np.asarray(data["boundary_tags"]) if "boundary_tags" in data.files else None
+    except MeshFileError:
+        raise
+    except (ValueError, OSError, EOFError) as exc:
+        if isinstance(exc, (FileNotFoundError, PermissionError)):
+            raise
+        raise MeshFileError(f"cannot read {str(path)!r} as a .npz mesh: {exc}") from None
+    if not np.issubdtype(triangles.dtype, np.integer):
+        raise MeshFileError(f"{str(path)!r}: triangles must be integers, got {triangles.dtype}")
+    if edges is not None:
+        edges = edges.astype(np.intp).reshape(-1, 2)
+    if tags is not None:
+        tags = tags.astype(np.intp).reshape(-1)
+    return points, triangles.astype(np.intp), edges, tags
+
+
+_TAG_KEYS = ("gmsh:physical", "cell_tags", "medit:ref", "gmsh:geometrical")
+
+
+#: Formats meshio should try for an extension, in order (before meshio's own list).
+_READ_FORMATS = {".msh": ["gmsh", "ansys"], ".mesh": ["medit"], ".vtu": ["vtu"], ".vtk": ["vtk"]}
+
+
+def _read_meshio(path: Path) -> tuple[FloatArray, IntArray, IntArray | None, IntArray | None]:
+    ext = path.suffix.lower()
+    if ext in (".xdmf", ".xmf"):
+        try:
+            inline = _read_xdmf(path)
+        except (ValueError, SyntaxError) as exc:  # ElementTree's ParseError is a SyntaxError
+            raise MeshFileError(f"cannot read {str(path)!r} as XDMF: {exc}") from None
+        if inline is not None:
+            return inline
+    meshio = _meshio()
+    candidates = list(_READ_FORMATS.get(ext, []))
+    candidates += [f for f in meshio.extension_to_filetypes.get(ext, []) if f not in candidates]
+    if not candidates:
+        raise MeshFileError(
+            f"cannot tell the mesh format of {str(path)!r} from its extension {ext or '(none)'!r}; "
+            f"injmesh reads .npz and what meshio reads (.msh, .vtu, .vtk, .xdmf, .mesh, ...)"
+        )
+    # Name the format: meshio guessing from the extension prints failures and calls sys.exit.
+    m, errors = None, []
+    for fmt in candidates:
+        try:
+            m = meshio.read(path, file_format=fmt)
+            break
+        except (FileNotFoundError, PermissionError, IsADirectoryError):
+            raise
+        except ImportError as exc:
+            raise ImportError(f"reading {str(path)!r} needs a package meshio uses: {exc}") from None
+        except Exception as exc:  # meshio raises many kinds of errors on malformed input
+            errors.append(str(exc).splitlines()[0] if str(exc).strip() else type(exc).__name__)
+    if m is None:
+        detail = "; ".join(dict.fromkeys(e for e in errors if e)) or "unrecognised content"
+        raise MeshFileError(f"cannot read {str(path)!r} as {' or '.join(candidates)}: {detail}")
+    points = np.asarray(m.points, dtype=float)
+    blocks = [(i, c) for i, c in enumerate(m.cells) if c.type == "triangle"]
+    if not blocks:
+        kinds = ", ".join(sorted({c.type for c in m.cells})) or "none"
+        raise MeshFileError(f"{str(path)!r} has no triangles (cell types: {kinds})")
+    triangles = np.concatenate([np.asarray(c.data) for _, c in blocks]).astype(np.intp)
+    line_blocks = [(i, c) for i, c in enumerate(m.cells) if c.type == "line"]
+    if not line_blocks:
+        return points, triangles, None, None
+    lines = np.concatenate([np.asarray(c.data) for _, c in line_blocks]).astype(np.intp)
+    for key in _TAG_KEYS:
+        data = m.cell_data.get(key)
+        if data is None:
+            continue
+        values = [np.asarray(data[i]).reshape(-1) for i, _ in line_blocks]
+        if all(np.issubdtype(v.dtype, np.integer) and len(v) == len(c.data)
+               for v, (_, c) in zip(values, line_blocks, strict=True)):
+            return points, triangles, lines, np.concatenate(values).astype(np.intp)
+    # Untagged lines: one tag per line block.
+    tags = np.concatenate([np.full(len(c.data), k) for k, (_, c) in enumerate(line_blocks)])
+    return points, triangles, lines, tags.astype(np.intp)
+
+
+def _validate(path: Path, points: FloatArray, triangles: IntArray) -> None:
+    name = str(path)
+    if points.ndim != 2 or points.shape[1] not in (2, 3) or len(points) == 0:
+        raise MeshFileError(f"{name!r}: points must be (n, 2) or (n, 3), not {points.shape}")
+    if not np.all(np.isfinite(points)):
+        raise MeshFileError(f"{name!r}: points are not all finite")
+    if triangles.ndim != 2 or triangles.shape[1] != 3 or len(triangles) == 0:
+        raise MeshFileError(f"{name!r}: triangles must have shape (m, 3), got {triangles.shape}")
+    if triangles.min() < 0 or triangles.max() >= len(points):
+        raise MeshFileError(f"{name!r}: triangles refer to nodes outside 0..{len(points) - 1}")
+    if points.shape[1] == 3:
+        scale = float(np.ptp(points[:, :2], axis=0).max()) or 1.0
+        if np.abs(points[:, 2]).max() > 1e-9 * scale:
+            raise MeshFileError(f"{name!r}: the mesh is not planar (z is not 0)")
+
+
+def _compact(points: FloatArray, triangles: IntArray) -> tuple[FloatArray, IntArray, IntArray]:
+    """Drop unused nodes; return points, renumbered triangles and the old -> new index (-1)."""
+    used = np.zeros(len(points), dtype=bool)
+    used[triangles.ravel()] = True
+    index = np.full(len(points), -1, dtype=np.intp)
+    index[used] = np.arange(int(used.sum()))
+    return np.ascontiguousarray(points[used, :2]), index[triangles], index
+
+
+def _tags_from_lines(edges: IntArray, lines: IntArray, values: IntArray) -> IntArray:
+    """Tag boundary edges by the rank of their line cell's value; unmatched edges get one more."""
+    if np.any(lines < 0):
+        keep = np.all(lines >= 0, axis=1)
+        lines, values = lines[keep], values[keep]
+    distinct, rank = np.unique(values, return_inverse=True)
+    n = int(max(edges.max(initial=0), lines.max(initial=0))) + 1
+    line_key = np.sort(lines, axis=1) @ np.array([n, 1])
+    edge_key = np.sort(edges, axis=1) @ np.array([n, 1])
+    order = np.argsort(line_key)
+    pos = np.clip(np.searchsorted(line_key[order], edge_key), 0, max(len(order) - 1, 0))
+    found = line_key[order][pos] == edge_key if len(order) else np.zeros(len(edges), bool)
+    tags = np.full(len(edges), len(distinct), dtype=np.intp)
+    tags[found] = rank.reshape(-1)[order][pos[found]]
+    if not np.any(tags == len(distinct)):
+        return tags
+    return np.unique(tags, return_inverse=True)[1].reshape(-1).astype(np.intp)
+
+
+def _loop_tags(points: FloatArray, edges: IntArray) -> IntArray:
+    """Number the boundary loops: 0 encloses the largest area, then by decreasing |area|."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    if len(edges) == 0:
+        return np.zeros(0, dtype=np.intp)
+    n = len(points)
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    comp = np.unique(label[edges[:, 0]], return_inverse=True)[1].reshape(-1)
+    a, b = points[edges[:, 0]], points[edges[:, 1]]
+    area = np.bincount(comp, weights=0.5 * (a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1]))
+    order = np.lexsort((-np.abs(area), -area))  # largest positive area first
+    first, rest = order[:1], order[1:]
+    rest = rest[np.argsort(-np.abs(area[rest]), kind="stable")]
+    rank = np.empty(len(area), dtype=np.intp)
+    rank[np.concatenate([first, rest])] = np.arange(len(area))
+    return rank[comp]
