@@ -122,7 +122,7 @@ def mesh_boundary(
         dfix = domain.sdf(fixed_points)
         if np.any(dfix > on):
             i = int(np.argmax(dfix > on))
-            raise ValueError(f"fixed point {tuple(fixed_points[i])} lies outside the domain")
+            raise ValueError(f"fixed point {tuple(fixed_points[i].tolist())} lies outside the domain")
         corners = np.concatenate([corners, fixed_points[np.abs(dfix) <= on]])
 
     pts, fixed, loop_id = [], [], []

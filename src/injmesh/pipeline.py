@@ -10,7 +10,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .boundary import mesh_boundary
+from .boundary import BoundaryMesh, mesh_boundary
 from .geometry import Domain, as_domain
 from .geometry.base import as_points
 from .injection import inject_nodes
@@ -129,6 +129,63 @@ def generate(
     return mesh
 
 
+def initial_nodes(
+    domain: Domain | Callable[[FloatArray], FloatArray],
+    size: SizeLike,
+    *,
+    bbox: ArrayLike | None = None,
+    fixed_points: ArrayLike | None = None,
+    max_nodes: int = DEFAULT_MAX_NODES,
+) -> FloatArray:
+    """The nodes of Steps 1 and 2 (boundary meshing and Advancing Node Injection), unsmoothed.
+
+    This is the paper's "initial distribution" (its Figure 1b); parameters as in
+    :func:`generate`.
+
+    Returns
+    -------
+    (n, 2) array
+        Boundary nodes first, then user fixed interior points, then injected nodes.
+
+    Examples
+    --------
+    >>> import injmesh
+    >>> from injmesh.pipeline import initial_nodes
+    >>> initial_nodes(injmesh.Circle((0, 0), 1), 0.5).shape[1]
+    2
+    """
+    dom = as_domain(domain, bbox=bbox, fixed_points=fixed_points)
+    h = as_size_function(size)
+    fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
+    bnd, seeds, injected = _place_nodes(dom, h, fixed, max_nodes, None)
+    return np.concatenate([seeds, injected])
+
+
+def _place_nodes(
+    domain: Domain,
+    h: Callable[[FloatArray], FloatArray],
+    fixed: FloatArray,
+    max_nodes: int,
+    callback: Callback | None,
+    seconds: dict[str, float] | None = None,
+) -> tuple[BoundaryMesh, FloatArray, FloatArray]:
+    """Steps 1 and 2: boundary nodes, seeds (boundary + fixed interior) and injected nodes."""
+    t = time.perf_counter()
+    # Step 1: meshing of the boundary (Eq. 3.1-3.3, Algorithms 2 and 3).
+    bnd = mesh_boundary(domain, h, fixed, max_nodes=max_nodes, callback=callback)
+    if seconds is not None:
+        seconds["boundary"] = time.perf_counter() - t
+    t = time.perf_counter()
+    # Step 2: Advancing Node Injection (Algorithm 4).  Nodes are ordered boundary, user fixed
+    # interior points, injected: the first n_fixed never move.
+    interior_fixed = fixed[domain.sdf(fixed) < 0] if len(fixed) else fixed
+    seeds = np.concatenate([bnd.points, interior_fixed])
+    injected = inject_nodes(domain, h, bnd, seeds, max_nodes=max_nodes, callback=callback)
+    if seconds is not None:
+        seconds["injection"] = time.perf_counter() - t
+    return bnd, seeds, injected
+
+
 def _injection(
     domain: Domain,
     h: Callable[[FloatArray], FloatArray],
@@ -140,20 +197,9 @@ def _injection(
 ) -> Mesh:
     """Algorithm 1 of the paper."""
     seconds: dict[str, float] = {}
-    t = time.perf_counter()
-
-    # Step 1: meshing of the boundary (Eq. 3.1-3.3, Algorithms 2 and 3).
-    bnd = mesh_boundary(domain, h, fixed, max_nodes=max_nodes, callback=callback)
-    seconds["boundary"] = time.perf_counter() - t
-    t = time.perf_counter()
-
-    # Step 2: Advancing Node Injection (Algorithm 4).  Nodes are ordered boundary, user fixed
-    # interior points, injected: the first n_fixed never move.
-    interior_fixed = fixed[domain.sdf(fixed) < 0] if len(fixed) else fixed
-    seeds = np.concatenate([bnd.points, interior_fixed])
-    injected = inject_nodes(domain, h, bnd, seeds, max_nodes=max_nodes, callback=callback)
+    # Steps 1 and 2: boundary meshing and Advancing Node Injection.
+    bnd, seeds, injected = _place_nodes(domain, h, fixed, max_nodes, callback, seconds)
     points = np.concatenate([seeds, injected])
-    seconds["injection"] = time.perf_counter() - t
     t = time.perf_counter()
 
     # Step 3: Delaunay triangulation and attractive smoothing (Eq. 3.4).

@@ -52,7 +52,8 @@ class SizeFunction:
         if bad.any():
             i = int(np.argmax(bad))
             raise SizeError(
-                f"the size function must be positive and finite; h{tuple(p[i].round(6))} = {h[i]}"
+                "the size function must be positive and finite; "
+                f"h{tuple(p[i].round(6).tolist())} = {float(h[i])}"
             )
         return h
 

@@ -149,7 +149,11 @@ class _Relaxation:
             )
             deg = np.bincount(i, minlength=n) + np.bincount(j, minlength=n)
             hbar = (np.bincount(i, ld, n) + np.bincount(j, ld, n)) / np.maximum(deg, 1)
-            hbar = np.where(deg > 0, hbar, np.inf)
+            # A node in no triangle (Qhull drops coincident points) feels no force; its own h
+            # keeps the relative measures finite.
+            lonely = deg == 0
+            if lonely.any():
+                hbar[lonely] = self.h(p[lonely])
             step = DT * hbar[free, None] * total[free]
             new = p[free] + step
             escaped = self.domain.sdf(new) > 0

@@ -30,7 +30,11 @@ def delaunay(points: FloatArray) -> IntArray:
     if len(points) < 3:
         raise TriangulationError(f"cannot triangulate {len(points)} points; at least 3 are needed")
     try:
-        tri = Delaunay(points, qhull_options="Qbb Qc Qz Q12").simplices
+        # Centred, unit-size coordinates: far from the origin Qhull loses precision and drops
+        # points, and a scaled domain must see the same triangulation.
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        unit = (points - 0.5 * (lo + hi)) / max(float(np.max(hi - lo)), 1e-300)
+        tri = Delaunay(unit, qhull_options="Qbb Qc Qz Q12").simplices
     except QhullError as exc:
         raise TriangulationError(f"Delaunay triangulation failed: {str(exc).splitlines()[0]}") from None
     tri = tri.astype(np.intp, copy=False)

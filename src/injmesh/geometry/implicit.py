@@ -47,7 +47,7 @@ class Implicit(Domain):
         if box.shape != (4,) or not np.all(np.isfinite(box)):
             raise GeometryError(f"bbox must be four finite numbers (xmin, ymin, xmax, ymax), got {bbox!r}")
         if not (box[2] > box[0] and box[3] > box[1]):
-            raise GeometryError(f"bbox must have xmin < xmax and ymin < ymax, got {tuple(box)}")
+            raise GeometryError(f"bbox must have xmin < xmax and ymin < ymax, got {tuple(box.tolist())}")
         self._d = d
         self._bbox: BBox = (float(box[0]), float(box[1]), float(box[2]), float(box[3]))
         self.fixed_points = (
@@ -82,7 +82,9 @@ class Implicit(Domain):
             )
         if not np.all(np.isfinite(d)):
             i = int(np.argmax(~np.isfinite(d)))
-            raise GeometryError(f"the distance function is not finite at {tuple(p[i])}: {d[i]}")
+            raise GeometryError(
+                f"the distance function is not finite at {tuple(p[i].tolist())}: {float(d[i])}"
+            )
         return d
 
     def corners(self) -> FloatArray:

@@ -243,6 +243,7 @@ def _check_simple(v: FloatArray) -> None:
     if bad.any():
         k = int(np.argmax(bad))
         raise GeometryError(
-            f"Polygon is not simple: edge {i[k]} ({tuple(a[i[k]])} to {tuple(b[i[k]])}) meets "
-            f"edge {j[k]} ({tuple(a[j[k]])} to {tuple(b[j[k]])})"
+            f"Polygon is not simple: edge {i[k]} ({tuple(a[i[k]].tolist())} to "
+            f"{tuple(b[i[k]].tolist())}) meets edge {j[k]} ({tuple(a[j[k]].tolist())} to "
+            f"{tuple(b[j[k]].tolist())})"
         )
