@@ -325,11 +325,10 @@ def _figures(out_dir: Path, plan: _Plan, results: dict[_Job, _Result]) -> dict[s
     dm_h0 = plan.dm(TABLE2_H0)
 
     # Figures 1 and 2: initial nodes and their Delaunay triangulation.
-    initial = {"distmesh": initial_points(disc.geometry, disc.size, dm_h0,
-                                          np.random.default_rng(dm_job.seed))}
-    ours = _initial_nodes(disc)
-    if ours is not None:
-        initial["injection"] = ours
+    initial = {
+        "distmesh": initial_points(disc.geometry, disc.size, dm_h0, np.random.default_rng(dm_job.seed)),
+        "injection": _initial_nodes(disc),
+    }
     panels = [m for m in METHODS[::-1] if m in initial]
     for number, kind in ((1, "initial_nodes"), (2, "initial_triangulation")):
         fig = Figure(figsize=(5.2 * len(panels), 5.2), layout="constrained")
@@ -375,15 +374,11 @@ def _figures(out_dir: Path, plan: _Plan, results: dict[_Job, _Result]) -> dict[s
     return written
 
 
-def _initial_nodes(case: Case) -> np.ndarray | None:
-    """Steps 1+2 of the paper's algorithm, if the pipeline exposes them."""
-    from . import pipeline
+def _initial_nodes(case: Case) -> np.ndarray:
+    """Steps 1+2 of the paper's algorithm: the nodes before smoothing."""
+    from .pipeline import initial_nodes
 
-    fn = getattr(pipeline, "initial_nodes", None)
-    if fn is None:
-        return None
-    nodes = fn(case.geometry, case.size)
-    return np.asarray(getattr(nodes, "points", nodes), dtype=float)
+    return initial_nodes(case.geometry, case.size)
 
 
 def _save(fig: Figure, path: Path) -> str:
@@ -485,6 +480,7 @@ def _report(
     note("Table 1, our N", ours_m["N"], disc.paper_ours.N, "N")
     out.append("## Table 1: nodes in the unit disc\n")
     out.append(_table(header, rows))
+    out.append(_implied(disc))
 
     # Table 2.
     t2 = plan.table2()
@@ -556,17 +552,13 @@ def _report(
                      getattr(case.paper_ours, key), key)
         header = ["", "DistMesh (paper)", "DistMesh (measured)", "Ours (paper)", "Ours (measured)"]
         out.append(_table(header, rows))
+        out.append(_implied(case))
 
     # Figures.
     out.append("## Figures\n")
     if figures:
         listed = (f"- Figure {k[3:].lstrip('0')}: [{v}]({v})" for k, v in sorted(figures.items()))
         out.append("\n".join(listed) + "\n")
-    if "fig01" in figures and _initial_nodes_missing():
-        out.append(
-            "Figures 1b and 2b (initial nodes of our algorithm) are missing: the pipeline does not "
-            "expose `initial_nodes` yet.\n"
-        )
 
     failed = [r for r in results.values() if r.error is not None]
     if failed:
@@ -585,10 +577,34 @@ def _report(
     return "\n".join(out)
 
 
-def _initial_nodes_missing() -> bool:
-    from . import pipeline
+#: Samples per side of the grid on which :func:`implied_nodes` integrates.
+IMPLIED_SAMPLES = 400
 
-    return not hasattr(pipeline, "initial_nodes")
+
+def implied_nodes(case: Case) -> float:
+    """Nodes of an ideal mesh of ``case``: equilateral triangles with edges exactly h.
+
+    Such a mesh has ``2 / (sqrt(3) h^2)`` nodes per unit area, so the count is the integral of
+    that density over the domain (midpoint rule on an ``IMPLIED_SAMPLES`` grid of the box).  It
+    ignores the extra nodes a boundary brings, so real meshes have somewhat more.
+    """
+    x0, y0, x1, y1 = case.bbox
+    n = IMPLIED_SAMPLES
+    x = x0 + (np.arange(n) + 0.5) * (x1 - x0) / n
+    y = y0 + (np.arange(n) + 0.5) * (y1 - y0) / n
+    xx, yy = np.meshgrid(x, y)
+    p = np.stack([xx.ravel(), yy.ravel()], axis=1)
+    p = p[case.geometry.sdf(p) < 0]
+    cell = (x1 - x0) * (y1 - y0) / n**2
+    return float(np.sum(2 / (math.sqrt(3) * case.size(p) ** 2)) * cell)
+
+
+def _implied(case: Case) -> str:
+    return (
+        f"For scale: a mesh of equilateral triangles with edges exactly h would have about "
+        f"{implied_nodes(case):.0f} nodes (interior density integrated over the domain, "
+        "boundary effects ignored).\n"
+    )
 
 
 def _spread(results: list[_Result]) -> str:
