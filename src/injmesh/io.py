@@ -3,7 +3,8 @@
 The format follows the file's extension:
 
 ========  ===================  ==========================================================
-``.msh``  Gmsh 4.1 (ASCII)     ``file_format="gmsh22"`` writes the older MSH 2.2 instead
+``.msh``  Gmsh 4.1 (ASCII)     nodes grouped by entity (see below); ``file_format="gmsh22"``
+                               writes the older MSH 2.2 instead
 ``.vtu``  VTK XML unstructured
 ``.xdmf`` XDMF                 data inline (XML), so no companion HDF5 file is needed
 ``.mesh`` Medit
@@ -20,6 +21,11 @@ distinct across dimensions.  In ``.msh`` files the tags are Gmsh physical groups
 ``"domain"``, ``"outer boundary"``, ``"hole 1"``, ``"hole 2"``, ... (a further loop running
 counter-clockwise, the outside of another component, is named ``"outer boundary k"``); VTU and
 XDMF files store them as the integer cell data ``cell_tags``, Medit files as ``medit:ref``.
+
+MSH 4.1 stores nodes entity by entity (each boundary component's nodes, then the interior), and
+readers such as meshio number nodes in file order; so the file numbers nodes in that order.  A
+mesh from :func:`injmesh.generate` already has its boundary nodes first and keeps its numbering;
+any other mesh reads back from ``.msh`` with the same points and triangles, renumbered.
 
 Writes are atomic: the file is written under a temporary name in the target directory and
 renamed over the target, so a failed write leaves nothing behind and never a half-written file.
@@ -47,6 +53,8 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
+import zipfile
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -201,14 +209,7 @@ def write(mesh: Mesh, path: str | os.PathLike[str], *, file_format: str | None =
     path = Path(path)
     fmt = format_for(path, file_format)
     meshio = None if fmt == "npz" else _meshio()
-    parent = path.parent
-    if not parent.is_dir():
-        raise FileNotFoundError(f"directory {str(parent)!r} does not exist")
-    if path.is_dir():
-        raise IsADirectoryError(f"{str(path)!r} is a directory")
-    # A hidden sibling with the same extension (meshio and XDMF look at it), renamed at the end.
-    tmp = parent / f".{path.stem}.{secrets.token_hex(6)}.tmp{path.suffix}"
-    try:
+    with atomic_path(path) as tmp:
         if fmt == "npz":
             with open(tmp, "xb") as fh:
                 np.savez_compressed(
@@ -220,6 +221,39 @@ def write(mesh: Mesh, path: str | os.PathLike[str], *, file_format: str | None =
                 )
         else:
             _write_meshio(meshio, mesh, tmp, fmt)
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """A temporary path beside ``path``, renamed over ``path`` when the block succeeds.
+
+    The temporary file is a hidden sibling with the same extension (writers that look at the
+    extension still work); if the block raises, it is removed and ``path`` is left untouched.
+
+    Raises
+    ------
+    FileNotFoundError
+        The directory of ``path`` does not exist.
+    IsADirectoryError
+        ``path`` is a directory.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     with atomic_path(pathlib.Path(tmp) / "notes.txt") as part:
+    ...         _ = part.write_text("done")
+    ...     sorted(p.name for p in pathlib.Path(tmp).iterdir())
+    ['notes.txt']
+    """
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise FileNotFoundError(f"directory {str(path.parent)!r} does not exist")
+    if path.is_dir():
+        raise IsADirectoryError(f"{str(path)!r} is a directory")
+    tmp = path.parent / f".{path.stem}.{secrets.token_hex(6)}.tmp{path.suffix}"
+    try:
+        yield tmp
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
@@ -265,6 +299,15 @@ def _write_meshio(meshio: Any, mesh: Mesh, tmp: Path, fmt: str) -> None:
                 entity = 1 if dim == 2 else tag
                 if not np.any((dim_tags[:, 0] == dim) & (dim_tags[:, 1] == entity)):
                     dim_tags[data[0, 0]] = (dim, entity)
+            # Nodes are stored entity by entity; number them in that order so that the node
+            # tags in the file run 1, 2, 3, ... and every reader agrees on the numbering.  For
+            # a mesh from generate() (boundary nodes first, loop by loop) this keeps the order.
+            order = np.lexsort((dim_tags[:, 1], dim_tags[:, 0]))
+            if np.any(order != np.arange(len(order))):
+                new = np.empty_like(order)
+                new[order] = np.arange(len(order))
+                points, dim_tags = points[order], dim_tags[order]
+                cells = [(kind, new[data]) for kind, data in cells]
             point_data["gmsh:dim_tags"] = dim_tags
         out = meshio.Mesh(points, cells, point_data=point_data, cell_data=cell_data,
                           field_data=field_data)
@@ -382,9 +425,10 @@ def read(path: str | os.PathLike[str]) -> Mesh:
     edges are recomputed from the triangles (oriented with the domain on their left) unless a
     ``.npz`` carries them.  Boundary tags come from the file's ``line`` cells when it has integer
     tags for them (``gmsh:physical``, ``cell_tags``, ``medit:ref``, ``gmsh:geometrical``): the
-    distinct values in increasing order become 0, 1, 2, ...; so a file written by
-    :func:`write` reads back with its tags.  Without line cells the boundary loops are found from
-    the edges: 0 is the loop enclosing the largest area, then the others by decreasing size.
+    distinct values in increasing order become 0, 1, 2, ... (boundary edges without a line cell
+    get one more tag), so a file written by :func:`write` reads back with its tags.  Without
+    tagged line cells the boundary loops are numbered from the edges: 0 is the loop enclosing the
+    largest area, then the others by decreasing enclosed area.
 
     Parameters
     ----------
@@ -458,7 +502,7 @@ def _read_npz(path: Path) -> tuple[FloatArray, IntArray, IntArray | None, IntArr
             tags = np.asarray(data["boundary_tags"]) if "boundary_tags" in data.files else None
     except MeshFileError:
         raise
-    except (ValueError, OSError, EOFError) as exc:
+    except (ValueError, OSError, EOFError, KeyError, zipfile.BadZipFile) as exc:
         if isinstance(exc, (FileNotFoundError, PermissionError)):
             raise
         raise MeshFileError(f"cannot read {str(path)!r} as a .npz mesh: {exc}") from None
@@ -476,6 +520,8 @@ _TAG_KEYS = ("gmsh:physical", "cell_tags", "medit:ref", "gmsh:geometrical")
 
 #: Formats meshio should try for an extension, in order (before meshio's own list).
 _READ_FORMATS = {".msh": ["gmsh", "ansys"], ".mesh": ["medit"], ".vtu": ["vtu"], ".vtk": ["vtk"]}
+#: meshio submodules whose name differs from the format's.
+_READER_MODULES = {"gmsh22": "gmsh", "dolfin-xml": "dolfin"}
 
 
 def _read_meshio(path: Path) -> tuple[FloatArray, IntArray, IntArray | None, IntArray | None]:
@@ -495,20 +541,27 @@ def _read_meshio(path: Path) -> tuple[FloatArray, IntArray, IntArray | None, Int
             f"cannot tell the mesh format of {str(path)!r} from its extension {ext or '(none)'!r}; "
             f"injmesh reads .npz and what meshio reads (.msh, .vtu, .vtk, .xdmf, .mesh, ...)"
         )
-    # Name the format: meshio guessing from the extension prints failures and calls sys.exit.
+    # Call each format's own reader: meshio.read prints a failed reader's error and then calls
+    # sys.exit, which a library must not do.
     m, errors = None, []
     for fmt in candidates:
+        module = getattr(meshio, _READER_MODULES.get(fmt, fmt.replace("-", "_")), None)
+        reader = getattr(module, "read", None)
+        if not callable(reader):
+            errors.append(f"meshio has no {fmt} reader")
+            continue
         try:
-            m = meshio.read(path, file_format=fmt)
+            m = reader(str(path))
             break
         except (FileNotFoundError, PermissionError, IsADirectoryError):
             raise
         except ImportError as exc:
             raise ImportError(f"reading {str(path)!r} needs a package meshio uses: {exc}") from None
         except Exception as exc:  # meshio raises many kinds of errors on malformed input
-            errors.append(str(exc).splitlines()[0] if str(exc).strip() else type(exc).__name__)
+            if str(exc).strip():
+                errors.append(str(exc).strip().splitlines()[0])
     if m is None:
-        detail = "; ".join(dict.fromkeys(e for e in errors if e)) or "unrecognised content"
+        detail = "; ".join(dict.fromkeys(errors)) or "unrecognised content"
         raise MeshFileError(f"cannot read {str(path)!r} as {' or '.join(candidates)}: {detail}")
     points = np.asarray(m.points, dtype=float)
     blocks = [(i, c) for i, c in enumerate(m.cells) if c.type == "triangle"]
@@ -528,9 +581,7 @@ def _read_meshio(path: Path) -> tuple[FloatArray, IntArray, IntArray | None, Int
         if all(np.issubdtype(v.dtype, np.integer) and len(v) == len(c.data)
                for v, (_, c) in zip(values, line_blocks, strict=True)):
             return points, triangles, lines, np.concatenate(values).astype(np.intp)
-    # Untagged lines: one tag per line block.
-    tags = np.concatenate([np.full(len(c.data), k) for k, (_, c) in enumerate(line_blocks)])
-    return points, triangles, lines, tags.astype(np.intp)
+    return points, triangles, None, None  # lines without tags: number the loops instead
 
 
 def _validate(path: Path, points: FloatArray, triangles: IntArray) -> None:

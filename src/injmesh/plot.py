@@ -283,7 +283,6 @@ def plot_mesh_with_histogram(
     else:
         fig = figure
     left, right = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.35, 1]})
-    kwargs.setdefault("colorbar", False)
     plot_mesh(mesh, ax=left, **kwargs)
     left.set_title(f"{mesh.n_points} nodes, {mesh.n_triangles} triangles")
     plot_quality_histogram(mesh, ax=right)

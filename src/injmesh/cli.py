@@ -1,0 +1,491 @@
+"""The ``injmesh`` command line: ``generate``, ``quality``, ``plot`` and ``paper``.
+
+Every failure is reported as one line ``injmesh: error: ...`` on stderr with a non-zero exit
+status, never a traceback (``-v`` adds the traceback of unexpected errors), and no output file
+is left behind: files are written atomically once everything else has succeeded.
+
+Examples
+--------
+Shell usage::
+
+    injmesh generate unit_disc -o disc.msh                  # a paper case with its own size
+    injmesh generate shape.geojson --size 0.05 -o shape.vtu
+    injmesh generate shape.wkt --size "0.02 + 0.1*hypot(x, y)" -o shape.msh
+    injmesh generate shape.poly --size-min 0.02 --growth 0.3 --size-max 0.2 -o shape.xdmf
+    injmesh quality shape.msh --size 0.05
+    injmesh plot shape.msh -o shape.png --color size-error --size 0.05
+    injmesh paper --out paper-results --quick
+
+From Python, ``main`` takes the arguments and returns the exit status:
+
+>>> import contextlib, io
+>>> with contextlib.redirect_stderr(io.StringIO()) as err:
+...     status = main(["generate", "no_such_case", "-o", "out.msh"])
+>>> status, err.getvalue().startswith("injmesh: error: unknown case 'no_such_case'")
+(1, True)
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import sys
+import time
+import traceback
+import warnings
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+from .progress import Progress
+from .sizing import SizeLike
+
+PROG = "injmesh"
+log = logging.getLogger(__name__)
+PLOT_FORMATS = (".png", ".svg", ".pdf")
+COMMANDS = ("generate", "quality", "plot", "paper")
+
+
+class UsageError(Exception):
+    """A command line that argparse rejected (exit status 2)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises instead of printing usage and exiting, so errors stay one line."""
+
+    def error(self, message: str) -> Any:  # type: ignore[override]
+        raise UsageError(message)
+
+
+# --- progress ---------------------------------------------------------------------------------
+
+
+class ProgressBar:
+    """A plain-text progress bar on a stream, fed by :class:`~injmesh.Progress` events.
+
+    One line per stage (boundary, injection, smoothing), redrawn in place with ``\\r`` at most
+    every ``interval`` seconds.  No dependency beyond the standard library.
+
+    Parameters
+    ----------
+    stream : text stream
+        Where to draw (stderr in the CLI).
+    width : int
+        Characters of the bar itself.
+    interval : float
+        Minimum seconds between redraws of the same stage.
+
+    Examples
+    --------
+    >>> import io
+    >>> from injmesh.progress import Progress
+    >>> out = io.StringIO()
+    >>> bar = ProgressBar(out, width=10, interval=0)
+    >>> bar(Progress("smoothing", 5, 10, {"max_move": 0.01}))
+    >>> bar.close()
+    >>> "[#####.....]" in out.getvalue()
+    True
+    """
+
+    def __init__(self, stream: IO[str], width: int = 30, interval: float = 0.1) -> None:
+        self.stream = stream
+        self.width = width
+        self.interval = interval
+        self._stage: str | None = None
+        self._last = 0.0
+        self._length = 0
+        self._pending: Progress | None = None
+
+    def __call__(self, event: Progress) -> None:
+        now = time.monotonic()
+        new_stage = event.stage != self._stage
+        done = event.total is not None and event.step >= event.total
+        if not (new_stage or done or now - self._last >= self.interval):
+            self._pending = event
+            return
+        if new_stage and self._stage is not None:
+            self._flush_pending()
+            self.stream.write("\n")
+            self._length = 0
+        self._stage, self._last = event.stage, now
+        self._pending = None
+        self._draw(event)
+
+    def _flush_pending(self) -> None:
+        if self._pending is not None:
+            self._draw(self._pending)
+            self._pending = None
+
+    def _draw(self, event: Progress) -> None:
+        if event.total:
+            frac = min(1.0, max(0.0, event.step / event.total))
+            filled = int(round(frac * self.width))
+            bar = f"[{'#' * filled}{'.' * (self.width - filled)}] {event.step}/{event.total}"
+        else:
+            bar = f"step {event.step}"
+        extras = []
+        for key in ("nodes", "max_move"):
+            if key in event.info:
+                value = event.info[key]
+                extras.append(f"{key} {value:.3g}" if isinstance(value, float) else f"{key} {value}")
+        line = f"{event.stage:<10} {bar}  {'  '.join(extras)}".rstrip()
+        self.stream.write("\r" + line + " " * max(0, self._length - len(line)))
+        self.stream.flush()
+        self._length = len(line)
+
+    def close(self) -> None:
+        """Draw the last state and end the line."""
+        if self._stage is not None:
+            self._flush_pending()
+            self.stream.write("\n")
+            self.stream.flush()
+            self._stage = None
+
+
+# --- arguments --------------------------------------------------------------------------------
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {value}")
+    return value
+
+
+def _number(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``injmesh`` command."""
+    from . import __version__
+
+    def add_noise(p: argparse.ArgumentParser, default: Any) -> None:
+        group = p.add_mutually_exclusive_group()
+        group.add_argument("-v", "--verbose", action="count", default=default,
+                           help="log what the mesher does (-vv for more)")
+        group.add_argument("-q", "--quiet", action="store_true", default=default,
+                           help="print only errors and results")
+
+    # On the subcommands too, without defaults, so "injmesh -v generate" keeps its -v.
+    common = _Parser(add_help=False)
+    add_noise(common, argparse.SUPPRESS)
+    parser = _Parser(
+        prog=PROG,
+        description="2-D triangular meshes by Advancing Node Injection (an improved DistMesh).",
+    )
+    parser.set_defaults(verbose=0, quiet=False)
+    add_noise(parser, argparse.SUPPRESS)
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    gen = sub.add_parser(
+        "generate", parents=[common], help="mesh a domain and write the mesh",
+        description="Mesh a domain and write the mesh; the format follows the extension of -o "
+        "(.msh, .vtu, .xdmf, .mesh, .npz).",
+    )
+    gen.add_argument("input", metavar="INPUT",
+                     help="a paper case (unit_disc, l_shape, ...), a .geojson/.json, .wkt or "
+                     ".poly file, FILE.py:NAME, or POLYGON ((...)) text")
+    gen.add_argument("-o", "--output", required=True, metavar="OUTPUT", help="the mesh file")
+    gen.add_argument("--size", metavar="SIZE",
+                     help="target edge length: a number, an expression in x and y "
+                     "(\"0.02 + 0.1*hypot(x, y)\"), or a case name; overrides a case's own size")
+    gen.add_argument("--size-min", type=_number, metavar="H",
+                     help="graded size: H on the boundary, growing inward")
+    gen.add_argument("--growth", type=_number, default=None, metavar="G",
+                     help="graded size: increase of h per unit distance from the boundary "
+                     "(default 0.2)")
+    gen.add_argument("--size-max", type=_number, metavar="H", help="graded size: cap on h")
+    gen.add_argument("--method", choices=("injection", "distmesh"), default="injection",
+                     help="the paper's algorithm (default) or the original DistMesh")
+    gen.add_argument("--max-iterations", type=_positive_int, metavar="N",
+                     help="cap on smoothing iterations")
+    gen.add_argument("--progress", action="store_true",
+                     help="draw a progress bar on stderr even when it is not a terminal")
+
+    qual = sub.add_parser("quality", parents=[common], help="report on a mesh file",
+                          description="Print nodes, triangles, element quality q (Eq. 5.1), "
+                          "angles and, with --size, the size error Er.")
+    qual.add_argument("mesh", metavar="MESH", help="a mesh file (.msh, .vtu, .xdmf, .mesh, .npz)")
+    qual.add_argument("--size", metavar="SIZE",
+                      help="the intended h (number, expression or case name) for Er")
+
+    plot = sub.add_parser("plot", parents=[common], help="draw a mesh to an image",
+                          description="Draw a mesh to a .png, .svg or .pdf (no display needed).")
+    plot.add_argument("mesh", metavar="MESH", help="a mesh file")
+    plot.add_argument("-o", "--output", required=True, metavar="FILE",
+                      help="the image (.png, .svg, .pdf)")
+    plot.add_argument("--color", choices=("quality", "size-error", "none"), default="quality",
+                      help="fill triangles by quality q, colour edges by lc/h - 1, or neither")
+    plot.add_argument("--size", metavar="SIZE", help="the intended h, for --color size-error")
+    plot.add_argument("--histogram", action="store_true",
+                      help="add the histogram of q beside the mesh (as in the paper)")
+    plot.add_argument("--title", help="a title for the picture")
+    plot.add_argument("--show", action="store_true", help="also open a window")
+
+    paper = sub.add_parser("paper", parents=[common],
+                           help="reproduce the paper's tables and figures",
+                           description="Mesh the paper's six cases with both algorithms and "
+                           "write tables and figures.")
+    paper.add_argument("--out", default="paper-results", metavar="DIR",
+                       help="output directory (default: paper-results)")
+    paper.add_argument("--quick", action="store_true", help="coarser sizes, for a fast check")
+    paper.add_argument("--progress", action="store_true", help="report progress on stderr")
+    return parser
+
+
+# --- commands ---------------------------------------------------------------------------------
+
+
+def _size(text: str) -> Any:
+    """``--size``: a case name (its h), a number or an expression."""
+    from .cases import CASES
+    from .inputs import parse_size
+
+    if text.strip() in CASES:
+        return CASES[text.strip()].size
+    return parse_size(text)
+
+
+def _check_target(path: Path) -> None:
+    if not path.parent.is_dir():
+        raise FileNotFoundError(f"output directory {str(path.parent)!r} does not exist")
+    if path.is_dir():
+        raise IsADirectoryError(f"output {str(path)!r} is a directory")
+
+
+def _generate(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
+    import injmesh
+
+    from .inputs import graded_size, load_domain
+    from .io import format_for, write
+
+    output = Path(args.output)
+    format_for(output)  # an unknown extension fails before any meshing
+    _check_target(output)
+    graded = args.size_min is not None or args.growth is not None or args.size_max is not None
+    if graded and args.size is not None:
+        raise ValueError("give either --size or --size-min/--growth/--size-max, not both")
+    if graded and args.size_min is None:
+        raise ValueError("--growth and --size-max need --size-min")
+
+    source = load_domain(args.input)
+    log.info("input %s: %r", source.name, source.domain)
+    size: SizeLike
+    if graded:
+        growth = 0.2 if args.growth is None else args.growth
+        size = graded_size(source.domain, args.size_min, growth, args.size_max)
+    elif args.size is not None:
+        size = _size(args.size)
+    elif source.size is not None:
+        size = source.size
+    else:
+        raise ValueError(
+            f"{args.input!r} brings no size: give --size (a number or an expression in x and y) "
+            "or --size-min"
+        )
+
+    show_bar = args.progress or (err.isatty() and not args.quiet)
+    bar = ProgressBar(err) if show_bar else None
+    start = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            mesh = injmesh.generate(
+                source.domain, size, method=args.method, max_iterations=args.max_iterations,
+                callback=bar,
+            )
+        finally:
+            if bar is not None:
+                bar.close()
+    log.info("%r; %s", mesh, ", ".join(f"{k} {v:.3f} s" for k, v in mesh.stats.seconds.items()))
+    write(mesh, output)
+    seconds = time.perf_counter() - start
+    if not args.quiet:
+        for w in caught:
+            err.write(f"{PROG}: warning: {str(w.message).splitlines()[0]}\n")
+        q = mesh.quality()
+        out.write(
+            f"wrote {output}: {mesh.n_points} nodes, {mesh.n_triangles} triangles, "
+            f"q min {q.min():.4f}, q mean {q.mean():.4f}, {mesh.stats.iterations} iterations, "
+            f"{seconds:.2f} s\n"
+        )
+    return 0
+
+
+def _text_histogram(q: np.ndarray, width: int = 40) -> list[str]:
+    lo = min(math.floor(float(q.min()) * 20) / 20, 0.95)
+    edges = np.linspace(lo, 1.0, int(round((1.0 - lo) * 20)) + 1)
+    counts, _ = np.histogram(q, bins=edges)
+    top = max(int(counts.max()), 1)
+    rows = []
+    for a, b, c in zip(edges[:-1], edges[1:], counts, strict=True):
+        bar = "#" * int(math.ceil(width * c / top)) if c else ""
+        rows.append(f"    {a:.2f}-{b:.2f} | {bar:<{width}} {c}")
+    return rows
+
+
+def _quality(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
+    from .io import boundary_names, read
+
+    size = _size(args.size) if args.size is not None else None
+    mesh = read(args.mesh)
+    q = mesh.quality()
+    angles = mesh.angles()
+    names = boundary_names(mesh.boundary_edges, mesh.boundary_tags, mesh.points)
+    lines = [
+        f"{args.mesh}",
+        f"  nodes            {mesh.n_points}",
+        f"  triangles        {mesh.n_triangles}",
+        f"  area             {mesh.areas().sum():.6g}",
+        f"  q min / mean     {q.min():.4f} / {q.mean():.4f}",
+        f"  angles           {angles.min():.1f} to {angles.max():.1f} degrees",
+        f"  boundary         {len(mesh.boundary_edges)} edges in {len(names)} "
+        f"loop{'s' if len(names) != 1 else ''} ({', '.join(names.values())})",
+    ]
+    if size is not None:
+        r = mesh.size_report(size)
+        lines += [
+            f"  Er               {r.er:.4g}   (mean |lc - h|, lengths)",
+            f"  relative Er      {r.relative:.4g}   (mean |lc/h - 1|)",
+            f"  lc/h             {r.ratio_min:.3f} to {r.ratio_max:.3f}, mean {r.ratio_mean:.3f}",
+        ]
+    lines.append("  histogram of q")
+    lines += _text_histogram(q)
+    out.write("\n".join(lines) + "\n")
+    return 0
+
+
+def _plot(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
+    from .io import atomic_path, read
+    from .plot import MISSING_MATPLOTLIB, plot_mesh, plot_mesh_with_histogram
+
+    output = Path(args.output)
+    ext = output.suffix.lower()
+    if ext not in PLOT_FORMATS:
+        raise ValueError(
+            f"cannot tell the image format of {str(output)!r}; use {', '.join(PLOT_FORMATS)}"
+        )
+    _check_target(output)
+    if args.color == "size-error" and args.size is None:
+        raise ValueError("--color size-error needs --size")
+    size = _size(args.size) if args.size is not None else None
+    color = None if args.color == "none" else args.color
+    mesh = read(args.mesh)
+    try:
+        from matplotlib.figure import Figure
+    except ImportError as exc:
+        raise ImportError(MISSING_MATPLOTLIB) from exc
+
+    if args.show:
+        import matplotlib.pyplot as plt
+
+        fig = plt.figure(figsize=(11, 4.8) if args.histogram else (7, 6), layout="constrained")
+    else:  # no pyplot: no backend, no display, no global state
+        fig = Figure(figsize=(11, 4.8) if args.histogram else (7, 6), layout="constrained")
+    if args.histogram:
+        plot_mesh_with_histogram(mesh, title=args.title, figure=fig, color=color, size=size)
+    else:
+        ax = fig.add_subplot()
+        plot_mesh(mesh, ax=ax, color=color, size=size)
+        if args.title:
+            ax.set_title(args.title)
+    with atomic_path(output) as tmp:
+        fig.savefig(tmp, format=ext[1:], dpi=150)
+    if not args.quiet:
+        out.write(f"wrote {output}\n")
+    if args.show:
+        plt.show()
+    return 0
+
+
+def _paper(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
+    from .paper import run
+
+    result = run(Path(args.out), quick=args.quick, progress=args.progress)
+    if not args.quiet:
+        out.write(f"wrote {result}\n")
+    return 0
+
+
+_COMMANDS: dict[str, Callable[[argparse.Namespace, IO[str], IO[str]], int]] = {
+    "generate": _generate,
+    "quality": _quality,
+    "plot": _plot,
+    "paper": _paper,
+}
+
+
+def _message(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror and exc.filename is not None:
+        return f"{exc.strerror}: {exc.filename!s}"
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``injmesh`` command with ``argv`` (default: ``sys.argv[1:]``).
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments, without the program name.
+
+    Returns
+    -------
+    int
+        0 on success, 1 on an error, 2 on a malformed command line, 130 when interrupted.
+    """
+    out, err = sys.stdout, sys.stderr
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    verbose = 0
+    handler: logging.Handler | None = None
+    logger = logging.getLogger("injmesh")
+    try:
+        parser = build_parser()
+        args = parser.parse_args(args_list)
+        verbose = getattr(args, "verbose", 0)
+        if args.command is None:
+            raise UsageError(f"choose a command: {', '.join(COMMANDS)} (see {PROG} --help)")
+        if verbose:
+            handler = logging.StreamHandler(err)
+            handler.setFormatter(logging.Formatter("%(name)s: %(message)s"))
+            logger.addHandler(handler)
+            logger.setLevel(logging.DEBUG if verbose > 1 else logging.INFO)
+        return _COMMANDS[args.command](args, out, err)
+    except SystemExit as exc:  # --help and --version
+        return exc.code if isinstance(exc.code, int) else 0
+    except UsageError as exc:
+        err.write(f"{PROG}: error: {exc}\n")
+        return 2
+    except KeyboardInterrupt:
+        err.write(f"\n{PROG}: interrupted; nothing written\n")
+        return 130
+    except (ValueError, TypeError, OSError, ImportError, RuntimeError, MemoryError) as exc:
+        err.write(f"{PROG}: error: {_message(exc)}\n")
+        if verbose:
+            traceback.print_exc(file=err)
+        return 1
+    except Exception as exc:  # a bug: still one line, with the traceback under -v
+        err.write(f"{PROG}: error: internal error: {type(exc).__name__}: {_message(exc)}"
+                  f"{'' if verbose else ' (run with -v for details)'}\n")
+        if verbose:
+            traceback.print_exc(file=err)
+        return 1
+    finally:
+        if handler is not None:
+            logger.removeHandler(handler)
+            logger.setLevel(logging.NOTSET)
