@@ -1,0 +1,164 @@
+"""Step 1: boundary meshing by injection-projection (3.1, 3.2) and 1-D balancing (3.3)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from conftest import CASE_NAMES, FORMS
+from injmesh import Circle, NodeBudgetError, Polygon, Rectangle
+from injmesh.boundary import BoundaryMesh, estimate_nodes, mesh_boundary
+from injmesh.cases import CASES
+from injmesh.geometry import as_domain
+from injmesh.progress import Progress
+from injmesh.sizing import as_size_function
+
+BUDGET = 10**6
+
+
+def _loop_area(p: np.ndarray) -> float:
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def _case_boundary(name: str, form: str):
+    case = CASES[name]
+    h = as_size_function(case.size)
+    if form == "geometry":
+        dom, fixed = case.geometry, np.empty((0, 2))
+    else:
+        dom, fixed = as_domain(case.sdf, bbox=case.bbox, fixed_points=case.fixed_points), case.fixed_points
+    return dom, h, mesh_boundary(dom, h, fixed, max_nodes=BUDGET)
+
+
+def _check_structure(b: BoundaryMesh) -> None:
+    n = len(b.points)
+    assert b.points.shape == (n, 2)
+    assert b.edges.shape == (n, 2)
+    assert b.node_loop.shape == (n,) and b.fixed.shape == (n,)
+    assert np.array_equal(b.edges[:, 0], np.arange(n))
+    # edges[:, 1] is a permutation that stays within each loop and closes it.
+    assert np.array_equal(np.sort(b.edges[:, 1]), np.arange(n))
+    assert np.array_equal(b.node_loop[b.edges[:, 1]], b.node_loop)
+    # Each loop's nodes are contiguous.
+    assert np.all(np.diff(b.node_loop) >= 0)
+    assert np.array_equal(np.unique(b.node_loop), np.arange(b.node_loop.max() + 1))
+
+
+@pytest.mark.parametrize("form", FORMS)
+@pytest.mark.parametrize("name", CASE_NAMES)
+def test_boundary_edges_follow_h(name: str, form: str) -> None:
+    dom, h, b = _case_boundary(name, form)
+    _check_structure(b)
+    a, c = b.points[b.edges[:, 0]], b.points[b.edges[:, 1]]
+    ratio = np.hypot(*(c - a).T) / h(0.5 * (a + c))
+    assert np.mean(np.abs(ratio - 1)) < 0.1
+    assert 0.5 < ratio.min() and ratio.max() < 1.5
+    assert np.abs(dom.sdf(b.points)).max() < 1e-6 * dom.diameter
+
+
+@pytest.mark.parametrize("form", FORMS)
+@pytest.mark.parametrize("name", CASE_NAMES)
+def test_boundary_loops_oriented(name: str, form: str) -> None:
+    _, _, b = _case_boundary(name, form)
+    areas = [_loop_area(b.points[b.node_loop == k]) for k in range(b.node_loop.max() + 1)]
+    # Tag 0 is the outer boundary, counter-clockwise; holes come after, clockwise.
+    assert areas[0] > 0
+    assert all(a < 0 for a in areas[1:])
+    assert abs(areas[0]) == max(abs(a) for a in areas)
+
+
+@pytest.mark.parametrize("form", FORMS)
+@pytest.mark.parametrize("name", CASE_NAMES)
+def test_boundary_fixed_points_are_nodes(name: str, form: str) -> None:
+    case = CASES[name]
+    _, _, b = _case_boundary(name, form)
+    fixed_nodes = b.points[b.fixed]
+    for c in case.fixed_points:
+        assert np.hypot(*(fixed_nodes - c).T).min() < 1e-9, f"corner {tuple(c)} is not a fixed node"
+    # Every loop has at least one fixed node (an anchor on a smooth closed curve).
+    assert set(np.unique(b.node_loop[b.fixed])) == set(np.unique(b.node_loop))
+
+
+def test_rectangle_corners_are_fixed_nodes() -> None:
+    rect = Rectangle((0, 0), (3, 1))
+    b = mesh_boundary(rect, as_size_function(0.2), np.empty((0, 2)), max_nodes=BUDGET)
+    _check_structure(b)
+    fixed = {tuple(p) for p in b.points[b.fixed].tolist()}
+    assert fixed == {(0.0, 0.0), (3.0, 0.0), (3.0, 1.0), (0.0, 1.0)}
+    assert np.all(b.node_loop == 0)
+    # Straight sides with constant h: exactly round(length / h) equal segments.
+    assert len(b.points) == 2 * 15 + 2 * 5
+    lengths = np.hypot(*(b.points[b.edges[:, 1]] - b.points).T)
+    assert np.allclose(lengths, 0.2)
+
+
+def test_user_fixed_point_on_boundary_is_kept() -> None:
+    disc = Circle((0, 0), 1)
+    p = np.array([[math.cos(0.3), math.sin(0.3)]])
+    b = mesh_boundary(disc, as_size_function(0.1), p, max_nodes=BUDGET)
+    i = np.flatnonzero(b.fixed)
+    assert np.hypot(*(b.points[i] - p[0]).T).min() < 1e-12
+
+
+def test_fixed_point_outside_is_refused() -> None:
+    with pytest.raises(ValueError, match="outside the domain"):
+        mesh_boundary(Circle((0, 0), 1), as_size_function(0.1), np.array([[2.0, 0.0]]), max_nodes=BUDGET)
+
+
+def test_smooth_curve_node_count() -> None:
+    """A circle of radius 1 with h = 2 pi / 40 gets exactly 40 equal segments."""
+    b = mesh_boundary(Circle((0, 0), 1), as_size_function(2 * math.pi / 40), np.empty((0, 2)),
+                      max_nodes=BUDGET)
+    assert len(b.points) == 40
+    lengths = np.hypot(*(b.points[b.edges[:, 1]] - b.points).T)
+    assert np.ptp(lengths) < 1e-6
+
+
+def test_graded_h_is_followed_on_a_polygon() -> None:
+    poly = Polygon([(0, 0), (2, 0), (2, 1), (1, 1), (1, 2), (0, 2)])
+    h = as_size_function(lambda p: 0.03 + 0.15 * p[:, 0])
+    b = mesh_boundary(poly, h, np.empty((0, 2)), max_nodes=BUDGET)
+    _check_structure(b)
+    a, c = b.points, b.points[b.edges[:, 1]]
+    ratio = np.hypot(*(c - a).T) / h(0.5 * (a + c))
+    assert np.mean(np.abs(ratio - 1)) < 0.1
+    assert len(b.points[b.fixed]) == 6
+
+
+def test_inputs_are_not_modified() -> None:
+    fixed = np.array([[1.0, 0.0]])
+    before = fixed.copy()
+    mesh_boundary(Circle((0, 0), 1), as_size_function(0.2), fixed, max_nodes=BUDGET)
+    assert np.array_equal(fixed, before)
+
+
+def test_budget_is_checked_first() -> None:
+    with pytest.raises(NodeBudgetError, match="max_nodes=100"):
+        mesh_boundary(Circle((0, 0), 1), as_size_function(0.01), np.empty((0, 2)), max_nodes=100)
+
+
+def test_boundary_reports_progress() -> None:
+    events: list[Progress] = []
+    case = CASES["square_with_four_holes"]
+    mesh_boundary(case.geometry, as_size_function(case.size), np.empty((0, 2)), max_nodes=BUDGET,
+                  callback=events.append)
+    assert [e.stage for e in events] == ["boundary"] * 5
+    assert [e.step for e in events] == [1, 2, 3, 4, 5]
+    assert all(e.total == 5 for e in events)
+
+
+def test_estimate_nodes_for_constant_h() -> None:
+    """The unit square with h = 0.05 holds about 1 / (sqrt(3)/2 h^2) nodes."""
+    h_min, count = estimate_nodes(Rectangle((0, 0), (1, 1)), as_size_function(0.05))
+    assert h_min == 0.05
+    assert count == pytest.approx(1 / (math.sqrt(3) / 2 * 0.05**2), rel=0.05)
+
+
+def test_estimate_nodes_is_scale_free() -> None:
+    h1 = estimate_nodes(Circle((0, 0), 1), as_size_function(0.1))
+    h2 = estimate_nodes(Circle((0, 0), 1000), as_size_function(100.0))
+    assert h2[0] == pytest.approx(1000 * h1[0])
+    assert h2[1] == pytest.approx(h1[1], rel=1e-9)

@@ -1,0 +1,107 @@
+"""Step 2: Advancing Node Injection (Algorithm 4)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from conftest import CASE_NAMES
+from injmesh import Circle, NodeBudgetError, Polygon, Rectangle
+from injmesh.boundary import estimate_nodes, mesh_boundary
+from injmesh.cases import CASES
+from injmesh.injection import inject_nodes
+from injmesh.sizing import as_size_function
+
+BUDGET = 10**6
+
+
+def _inject(domain, size, **kwargs):
+    h = as_size_function(size)
+    b = mesh_boundary(domain, h, np.empty((0, 2)), max_nodes=BUDGET)
+    return h, b, inject_nodes(domain, h, b, b.points, max_nodes=kwargs.pop("max_nodes", BUDGET), **kwargs)
+
+
+def _check_spacing(h, boundary_points: np.ndarray, injected: np.ndarray) -> None:
+    """No injected node closer than 0.5 h to any other node (h averaged over the pair)."""
+    allp = np.concatenate([boundary_points, injected])
+    hv = h(allp)
+    pairs = cKDTree(allp).query_pairs(float(hv.max()), output_type="ndarray")
+    pairs = pairs[pairs.max(axis=1) >= len(boundary_points)]  # at least one injected node
+    dist = np.hypot(*(allp[pairs[:, 0]] - allp[pairs[:, 1]]).T)
+    assert np.all(dist >= 0.5 * 0.5 * (hv[pairs[:, 0]] + hv[pairs[:, 1]]))
+
+
+@pytest.mark.parametrize("name", CASE_NAMES)
+def test_injection_on_paper_cases(name: str) -> None:
+    case = CASES[name]
+    h, b, inj = _inject(case.geometry, case.size)
+    assert inj.ndim == 2 and inj.shape[1] == 2 and len(inj) > 0
+    assert np.all(case.geometry.sdf(inj) < 0)
+    _check_spacing(h, b.points, inj)
+    _, expected = estimate_nodes(case.geometry, h)
+    assert 0.8 * expected <= len(b.points) + len(inj) <= 1.3 * expected
+
+
+@pytest.mark.parametrize(
+    "domain",
+    [
+        Rectangle((0, 0), (2, 1)),
+        Circle((0, 0), 1) - Circle((0.3, 0), 0.3),
+        Polygon([(0, 0), (2, 0), (2, 0.3), (0.3, 0.3), (0.3, 2), (0, 2)]),  # thin arms
+    ],
+    ids=["rectangle", "eccentric-hole", "thin-l"],
+)
+def test_injection_spacing_uniform_h(domain) -> None:
+    h, b, inj = _inject(domain, 0.1)
+    assert np.all(domain.sdf(inj) < 0)
+    _check_spacing(h, b.points, inj)
+    _, expected = estimate_nodes(domain, h)
+    assert 0.8 * expected <= len(b.points) + len(inj) <= 1.3 * expected
+
+
+def test_straight_front_injects_equilateral_rows() -> None:
+    """From a straight side with constant h, the first layer sits sqrt(3)/2 h inside."""
+    h, b, inj = _inject(Rectangle((0, 0), (4, 4)), 0.2)
+    first = inj[np.abs(inj[:, 1] - np.sqrt(3) / 2 * 0.2) < 1e-9]
+    assert len(first) >= 10
+
+
+def test_injection_is_deterministic() -> None:
+    case = CASES["square_with_four_holes"]
+    a = _inject(case.geometry, case.size)[2]
+    b = _inject(case.geometry, case.size)[2]
+    assert np.array_equal(a, b)
+
+
+def test_existing_nodes_are_avoided_and_not_modified() -> None:
+    disc = Circle((0, 0), 1)
+    h = as_size_function(0.1)
+    b = mesh_boundary(disc, h, np.empty((0, 2)), max_nodes=BUDGET)
+    centre = np.array([[0.0, 0.0]])
+    existing = np.concatenate([b.points, centre])
+    before = existing.copy()
+    inj = inject_nodes(disc, h, b, existing, max_nodes=BUDGET)
+    assert np.array_equal(existing, before)
+    assert np.hypot(*inj.T).min() >= 0.5 * 0.1
+
+
+def test_small_domain_needs_no_injection() -> None:
+    """A disc only about 1.5 h across: the boundary nodes are all there is, or nearly."""
+    h, b, inj = _inject(Circle((0, 0), 0.08), 0.1)
+    assert len(inj) <= 1
+
+
+def test_injection_budget() -> None:
+    with pytest.raises(NodeBudgetError, match="max_nodes"):
+        _inject(Rectangle((0, 0), (1, 1)), 0.05, max_nodes=200)
+
+
+def test_injection_reports_layers() -> None:
+    events = []
+    _inject(Rectangle((0, 0), (1, 1)), 0.1, callback=events.append)
+    assert events and all(e.stage == "injection" for e in events)
+    steps = [e.step for e in events]
+    assert steps == list(range(1, len(steps) + 1))
+    nodes = [e.info["nodes"] for e in events]
+    assert nodes == sorted(nodes)

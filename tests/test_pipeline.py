@@ -1,0 +1,358 @@
+"""``generate`` end to end: bad input, determinism, scale and translation invariance, progress,
+the immutable Mesh, and the quality metrics it reports."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import injmesh
+from conftest import assert_valid_mesh, canonical_triangles
+from injmesh import (
+    Circle,
+    ConvergenceWarning,
+    GeometryError,
+    Mesh,
+    NodeBudgetError,
+    Polygon,
+    Progress,
+    Rectangle,
+)
+from injmesh.cases import CASES
+from injmesh.quality import triangle_quality, unique_edges
+
+DISC = Circle((0, 0), 1)
+L_VERTICES = np.array([(0, 0), (1, 0), (1, 0.5), (0.5, 0.5), (0.5, 1), (0, 1)], dtype=float)
+
+
+def _disc_sdf(p):
+    return np.hypot(p[:, 0], p[:, 1]) - 1
+
+
+def _circles(scale: float = 1.0, offset=(0.0, 0.0)):
+    o = np.asarray(offset, dtype=float)
+    a = Circle(o + scale * np.array([0.0, 0.0]), scale)
+    b = Circle(o + scale * np.array([1.0, 0.0]), 0.7 * scale)
+    return (a | b) - Circle(o + scale * np.array([0.2, 0.1]), 0.3 * scale)
+
+
+@pytest.fixture(scope="module")
+def disc_mesh() -> Mesh:
+    return injmesh.generate(DISC, 0.2)
+
+
+# --- bad input: clear exceptions, never a SciPy traceback ---------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "exc", "match"),
+    [
+        (dict(domain=_disc_sdf, size=0.1, bbox=None), TypeError, "needs bbox"),
+        (dict(domain=3, size=0.1), TypeError, "Domain or a callable"),
+        (dict(domain=lambda p: np.ones((len(p), 2)), size=0.1, bbox=(-1, -1, 1, 1)), ValueError, "shape"),
+        (dict(domain=lambda p: 1.0, size=0.1, bbox=(-1, -1, 1, 1)), ValueError, "shape"),
+        (dict(domain=lambda p: np.ones(len(p)), size=0.1, bbox=(-1, -1, 1, 1)), GeometryError, "empty"),
+        (dict(domain=_disc_sdf, size=0.1, bbox=(-0.5, -0.5, 0.5, 0.5)), GeometryError,
+         "does not contain the domain"),
+        (dict(domain=_disc_sdf, size=0.1, bbox=(1, 1, -1, -1)), GeometryError, "xmin < xmax"),
+        (dict(domain=DISC, size=0.01, max_nodes=1000), NodeBudgetError, "max_nodes=1000"),
+        (dict(domain=DISC, size=0.1, fixed_points=[[2.0, 2.0]]), ValueError, "outside the domain"),
+        (dict(domain=_disc_sdf, size=0.1, bbox=(-1, -1, 1, 1), fixed_points=[[0, 3.0]]), ValueError,
+         "outside the domain"),
+        (dict(domain=DISC, size=0.1, fixed_points=[1.0, 2.0, 3.0]), ValueError, r"\(n, 2\)"),
+        (dict(domain=DISC, size=0.1, method="delaunay"), ValueError, "method must be"),
+        (dict(domain=DISC, size=0.1, smoothing="laplace"), ValueError, "smoothing must be"),
+        (dict(domain=DISC, size=0.1, max_iterations=-1), ValueError, "max_iterations"),
+        (dict(domain=DISC, size=0.1, max_iterations=2.5), ValueError, "max_iterations"),
+        (dict(domain=DISC, size=0.1, max_nodes=0), ValueError, "max_nodes"),
+        (dict(domain=DISC, size=0.1, h0=0.1), ValueError, "distmesh"),
+        (dict(domain=DISC, size=0.1, seed=1), ValueError, "distmesh"),
+    ],
+    ids=lambda v: v if isinstance(v, str) else None,
+)
+def test_bad_input(kwargs, exc, match) -> None:
+    kwargs = dict(kwargs)
+    domain, size = kwargs.pop("domain"), kwargs.pop("size")
+    with pytest.raises(exc, match=match) as info:
+        injmesh.generate(domain, size, **kwargs)
+    assert "scipy" not in type(info.value).__module__
+    assert "Qhull" not in str(info.value)
+
+
+def test_budget_error_is_a_value_error() -> None:
+    assert issubclass(NodeBudgetError, ValueError)
+    assert issubclass(GeometryError, ValueError)
+
+
+def test_fixed_point_message_is_readable() -> None:
+    """Under NumPy 2 a tuple of array items would print as ``(np.float64(2.0), ...)``."""
+    with pytest.raises(ValueError, match=r"fixed point \(2\.0, 2\.0\) lies outside"):
+        injmesh.generate(DISC, 0.1, fixed_points=[[2.0, 2.0]])
+
+
+def test_iteration_cap_warns_and_still_returns_a_valid_mesh() -> None:
+    with pytest.warns(ConvergenceWarning, match="did not converge"):
+        mesh = injmesh.generate(DISC, 0.2, max_iterations=2)
+    assert mesh.converged is False
+    assert mesh.stats.iterations == 2
+    assert_valid_mesh(mesh, DISC)
+
+
+def test_converged_mesh_does_not_warn() -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mesh = injmesh.generate(DISC, 0.2)
+    assert mesh.converged is True
+
+
+# --- options --------------------------------------------------------------------------------
+
+
+def test_attractive_smoothing_gives_a_valid_mesh() -> None:
+    case = CASES["l_shape"]
+    mesh = injmesh.generate(case.geometry, case.size, smoothing="attractive")
+    assert_valid_mesh(mesh, case.geometry)
+
+
+def test_interior_fixed_point_is_a_node() -> None:
+    fixed = np.array([[0.1, 0.2], [1.0, 0.0]])
+    mesh = injmesh.generate(DISC, 0.2, fixed_points=fixed)
+    assert_valid_mesh(mesh, DISC)
+    for f in fixed:
+        assert np.hypot(*(mesh.points - f).T).min() == 0.0
+
+
+def test_fixed_points_input_not_modified() -> None:
+    fixed = np.array([[0.1, 0.2]])
+    injmesh.generate(DISC, 0.2, fixed_points=fixed)
+    assert np.array_equal(fixed, [[0.1, 0.2]])
+
+
+def test_plain_callable_domain() -> None:
+    mesh = injmesh.generate(_disc_sdf, 0.2, bbox=(-1, -1, 1, 1))
+    assert_valid_mesh(mesh, _disc_sdf, diameter=2 * math.sqrt(2))
+    assert mesh.areas().sum() == pytest.approx(math.pi, rel=0.02)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="boundary not conforming: an interior node settles 0.0014 (0.5 % of h) inside the edge "
+    "(0.01, 0.9)-(-0.34, 0.38), Delaunay drops the boundary segment and the node becomes a "
+    "boundary node (tag -1); no step checks that every boundary segment survives",
+)
+def test_graded_hexagon_keeps_its_boundary() -> None:
+    hexagon = Polygon([(0.01, 0.9), (-0.34, 0.38), (-0.96, -0.06), (-0.55, -0.62), (0.38, -0.29),
+                       (0.66, 0.0)])
+    mesh = injmesh.generate(hexagon, lambda p: 0.03 + 0.3 * np.hypot(p[:, 0] - 0.5, p[:, 1]))
+    assert_valid_mesh(mesh, hexagon)
+
+
+def test_domain_with_hole_is_meshed_around_it() -> None:
+    ring = Circle((0, 0), 1) - Circle((0.3, 0.1), 0.3)
+    mesh = injmesh.generate(ring, 0.1)
+    assert_valid_mesh(mesh, ring)
+    assert np.array_equal(np.unique(mesh.boundary_tags), [0, 1])
+    assert mesh.areas().sum() == pytest.approx(math.pi * (1 - 0.09), rel=0.01)
+
+
+# --- determinism, scale, translation --------------------------------------------------------
+
+
+def test_same_call_gives_bit_identical_mesh() -> None:
+    case = CASES["two_circles_and_square"]
+    a = injmesh.generate(case.geometry, case.size)
+    b = injmesh.generate(case.geometry, case.size)
+    assert np.array_equal(a.points, b.points)
+    assert np.array_equal(a.triangles, b.triangles)
+    assert np.array_equal(a.boundary_edges, b.boundary_edges)
+    assert np.array_equal(a.boundary_tags, b.boundary_tags)
+
+
+def _assert_same_mesh_scaled(small: Mesh, big: Mesh, scale: float, offset=(0.0, 0.0), diameter=1.0) -> None:
+    assert big.n_points == small.n_points
+    mapped = (big.points - np.asarray(offset)) / scale
+    assert np.abs(mapped - small.points).max() <= 1e-6 * diameter
+    # The same triangles; Qhull's output order may differ between the two runs.
+    assert np.array_equal(canonical_triangles(big.triangles), canonical_triangles(small.triangles))
+
+
+def _graded(scale: float, base: float = 0.05):
+    """h = base + 0.1 x on the unit polygon, for the polygon scaled by ``scale``."""
+    return lambda p: scale * (base + 0.1 * p[:, 0] / scale)
+
+
+# Scaling by 1000 perturbs every coordinate by rounding (1000 is not a power of two).  Where the
+# injected nodes are exactly cocircular, Qhull's choice of diagonal depends on that rounding and
+# smoothing can then settle elsewhere (e.g. h = 0.045 + 0.1 x on this polygon: 185 vs 182 nodes).
+# If one of these two tests fails, look at the power-of-two test below first: if that passes,
+# no absolute tolerance is involved, only a Delaunay tie.
+
+
+def test_scale_invariance_polygon() -> None:
+    small = injmesh.generate(Polygon(L_VERTICES), _graded(1.0))
+    big = injmesh.generate(Polygon(1000 * L_VERTICES), _graded(1000.0))
+    _assert_same_mesh_scaled(small, big, 1000.0, diameter=math.sqrt(2))
+
+
+def test_scale_invariance_csg_of_circles() -> None:
+    small = injmesh.generate(_circles(), 0.12)
+    big = injmesh.generate(_circles(1000.0), 120.0)
+    _assert_same_mesh_scaled(small, big, 1000.0, diameter=_circles().diameter)
+
+
+@pytest.mark.parametrize("scale", [1024.0, 1 / 8])
+def test_power_of_two_scaling_is_bit_exact(scale: float) -> None:
+    """Scaling by 2^k is exact in floating point: the mesh must scale bit for bit (no absolute
+    tolerance anywhere in the pipeline)."""
+    # base 0.045 is the polygon case that a scale of 1000 breaks by a Delaunay tie.
+    small = injmesh.generate(Polygon(L_VERTICES), _graded(1.0, 0.045))
+    big = injmesh.generate(Polygon(scale * L_VERTICES), _graded(scale, 0.045))
+    assert np.array_equal(big.points / scale, small.points)
+    assert np.array_equal(big.triangles, small.triangles)
+    c_small = injmesh.generate(_circles(), 0.1)
+    c_big = injmesh.generate(_circles(scale), 0.1 * scale)
+    assert np.array_equal(c_big.points / scale, c_small.points)
+    assert np.array_equal(c_big.triangles, c_small.triangles)
+
+
+@pytest.mark.parametrize("offset", [(1e3, -2e3), (1e4, -3e4)])
+def test_translation_keeps_the_mesh(offset) -> None:
+    small = injmesh.generate(_circles(), 0.12)
+    moved = injmesh.generate(_circles(offset=offset), 0.12)
+    assert moved.n_points == small.n_points
+    assert_valid_mesh(moved, _circles(offset=offset))
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_translation_far_from_origin() -> None:
+    """Regression: Qhull on raw coordinates 1e6 from the origin dropped most points, and the
+    nodes left in no triangle then turned to NaN in smoothing."""
+    offset = (1e6, -3e6)
+    small = injmesh.generate(_circles(), 0.12)
+    moved = injmesh.generate(_circles(offset=offset), 0.12)
+    assert moved.n_points == small.n_points
+    assert_valid_mesh(moved, _circles(offset=offset))
+
+
+# --- progress and side effects ---------------------------------------------------------------
+
+
+def test_callback_receives_each_stage_and_nothing_is_printed(capsys) -> None:
+    events: list[Progress] = []
+    case = CASES["circle_with_hole"]
+    injmesh.generate(case.geometry, case.size, callback=events.append)
+    assert all(isinstance(e, Progress) for e in events)
+    stages = [e.stage for e in events]
+    assert set(stages) == {"boundary", "injection", "smoothing"}
+    # Stages come in the order of Algorithm 1.
+    assert stages.index("injection") > max(i for i, s in enumerate(stages) if s == "boundary")
+    assert stages.index("smoothing") > max(i for i, s in enumerate(stages) if s == "injection")
+    assert all(e.step >= 1 and (e.total is None or e.step <= e.total) for e in events)
+    out = capsys.readouterr()
+    assert out.out == "" and out.err == ""
+
+
+def test_nothing_is_printed_without_callback(capsys) -> None:
+    injmesh.generate(DISC, 0.25)
+    out = capsys.readouterr()
+    assert out.out == "" and out.err == ""
+
+
+# --- the Mesh value ---------------------------------------------------------------------------
+
+
+def test_mesh_is_immutable(disc_mesh: Mesh) -> None:
+    with pytest.raises(ValueError, match="read-only"):
+        disc_mesh.points[0, 0] = 5.0
+    with pytest.raises(ValueError):
+        disc_mesh.triangles[0, 0] = 0
+    with pytest.raises(ValueError):
+        disc_mesh.boundary_edges[0, 0] = 0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        disc_mesh.points = np.zeros((3, 2))  # type: ignore[misc]
+
+
+def test_mesh_copies_its_inputs() -> None:
+    p = np.array([[0, 0], [1, 0], [0, 1]], dtype=float)
+    t = np.array([[0, 1, 2]])
+    mesh = Mesh(points=p, triangles=t, boundary_edges=np.array([[0, 1], [1, 2], [2, 0]]),
+                boundary_tags=np.zeros(3, dtype=int))
+    p[0, 0] = 9.0
+    assert mesh.points[0, 0] == 0.0
+
+
+def test_mesh_repr_summarises(disc_mesh: Mesh) -> None:
+    r = repr(disc_mesh)
+    assert "points" in r and "triangles" in r
+    assert str(disc_mesh.n_points) in r
+    assert len(r) < 100
+
+
+def test_mesh_properties(disc_mesh: Mesh) -> None:
+    m = disc_mesh
+    assert m.n_points == len(m.points) and m.n_triangles == len(m.triangles)
+    assert np.array_equal(m.boundary_nodes, np.unique(m.boundary_edges))
+    assert m.quality().shape == (m.n_triangles,)
+    assert m.angles().shape == (m.n_triangles, 3)
+    assert np.allclose(m.angles().sum(axis=1), 180.0)
+    assert m.areas().sum() == pytest.approx(math.pi, rel=0.02)
+    # Euler: V - E + F = 1 for a disc.
+    assert m.n_points - len(m.edges) + m.n_triangles == 1
+    s = m.summary()
+    assert s["N"] == m.n_points and s["converged"] is True
+    assert 0 < s["q_min"] <= s["q_mean"] <= 1
+    assert s["Er_rel"] == pytest.approx(m.size_report().relative)
+
+
+def test_size_report_against_another_h(disc_mesh: Mesh) -> None:
+    assert disc_mesh.size_report(0.2).relative == pytest.approx(disc_mesh.size_report().relative)
+    assert disc_mesh.size_report(0.4).ratio_mean == pytest.approx(0.5 * disc_mesh.size_report().ratio_mean)
+
+
+def test_mesh_without_size_refuses_size_report() -> None:
+    mesh = Mesh(points=np.array([[0, 0], [1, 0], [0, 1]], dtype=float), triangles=np.array([[0, 1, 2]]),
+                boundary_edges=np.array([[0, 1], [1, 2], [2, 0]]), boundary_tags=np.zeros(3, dtype=int))
+    with pytest.raises(ValueError, match="size"):
+        mesh.size_report()
+
+
+# --- quality metrics ----------------------------------------------------------------------------
+
+
+def test_quality_of_equilateral_is_one() -> None:
+    p = np.array([[0, 0], [1, 0], [0.5, math.sqrt(3) / 2]])
+    assert triangle_quality(p, np.array([[0, 1, 2]]))[0] == pytest.approx(1.0, abs=1e-12)
+    # Invariant under scaling, rotation and vertex order.
+    rot = np.array([[math.cos(1), -math.sin(1)], [math.sin(1), math.cos(1)]])
+    q = triangle_quality(1e3 * p @ rot.T, np.array([[2, 0, 1], [0, 2, 1]]))
+    assert np.allclose(q, 1.0)
+
+
+def test_quality_of_degenerate_is_zero() -> None:
+    p = np.array([[0, 0], [1, 0], [2, 0], [0, 0]], dtype=float)
+    q = triangle_quality(p, np.array([[0, 1, 2], [0, 1, 3]]))
+    assert np.array_equal(q, [0.0, 0.0])
+
+
+def test_quality_of_right_isoceles() -> None:
+    p = np.array([[0, 0], [1, 0], [0, 1]], dtype=float)
+    assert triangle_quality(p, np.array([[0, 1, 2]]))[0] == pytest.approx(2 * (math.sqrt(2) - 1))
+
+
+def test_unique_edges_sorted_i_lt_j() -> None:
+    t = np.array([[0, 1, 2], [2, 1, 3], [3, 1, 4]])
+    e = unique_edges(t)
+    assert np.all(e[:, 0] < e[:, 1])
+    assert len(e) == len({tuple(x) for x in e.tolist()}) == 7
+    assert np.array_equal(e, e[np.lexsort((e[:, 1], e[:, 0]))])
+
+
+def test_rectangle_mesh_area_is_exact() -> None:
+    rect = Rectangle((0, 0), (2, 1))
+    mesh = injmesh.generate(rect, 0.15)
+    assert_valid_mesh(mesh, rect)
+    assert mesh.areas().sum() == pytest.approx(2.0, rel=1e-12)

@@ -1,0 +1,171 @@
+"""Step 3: Delaunay triangulation and force smoothing (Eq. 3.4), and the triangulation helpers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from injmesh import Circle, Rectangle
+from injmesh.boundary import mesh_boundary
+from injmesh.cases import CASES
+from injmesh.injection import inject_nodes
+from injmesh.quality import signed_areas, triangle_quality
+from injmesh.sizing import as_size_function
+from injmesh.smoothing import smooth, triangulate
+from injmesh.triangulation import TriangulationError, boundary_edges, delaunay, inside_triangles
+
+BUDGET = 10**6
+
+
+def _prepare(domain, size):
+    """Steps 1 and 2 as the pipeline runs them: nodes, the fixed count and the sliding rows."""
+    h = as_size_function(size)
+    b = mesh_boundary(domain, h, np.empty((0, 2)), max_nodes=BUDGET)
+    inj = inject_nodes(domain, h, b, b.points, max_nodes=BUDGET)
+    free_b = np.flatnonzero(~b.fixed)
+    prev = np.empty(len(b.points), dtype=np.intp)
+    prev[b.edges[:, 1]] = b.edges[:, 0]
+    sliding = np.stack([free_b, prev[free_b], b.edges[free_b, 1]], axis=1)
+    return h, b, np.concatenate([b.points, inj]), sliding
+
+
+def _check_result(domain, r, n_input: int) -> None:
+    assert r.points.shape[1] == 2 and len(r.points) <= n_input + len(r.points)
+    assert signed_areas(r.points, r.triangles).min() > 0
+    assert np.array_equal(np.unique(r.triangles), np.arange(len(r.points)))
+    assert domain.sdf(r.points[r.triangles].mean(axis=1)).max() <= 0
+    assert r.kept.shape == (len(r.points),)
+    assert r.kept.max() < n_input
+    assert r.iterations >= 0 and r.retriangulations >= 1
+
+
+@pytest.fixture(scope="module")
+def disc_nodes():
+    case = CASES["circle_with_hole"]
+    return (case.geometry, *_prepare(case.geometry, case.size))
+
+
+def test_attractive_smoothing_runs(disc_nodes) -> None:
+    domain, h, b, p, sliding = disc_nodes
+    before = p.copy()
+    r = smooth(domain, h, p, n_fixed=len(b.points), sliding=sliding, smoothing="attractive")
+    assert np.array_equal(p, before), "smooth modified its input"
+    _check_result(domain, r, len(p))
+    # The paper's variant keeps every boundary node where Step 1 put it.
+    on_b = (r.kept >= 0) & (r.kept < len(b.points))
+    assert on_b.sum() == len(b.points)
+    assert np.array_equal(r.points[on_b], p[r.kept[on_b]])
+    q = triangle_quality(r.points, r.triangles)
+    assert q.min() > 0.3 and q.mean() > 0.9
+
+
+def test_hybrid_smoothing_improves_quality(disc_nodes) -> None:
+    domain, h, b, p, sliding = disc_nodes
+    q0 = triangle_quality(p, triangulate(domain, p))
+    r = smooth(domain, h, p, n_fixed=len(b.points), sliding=sliding)
+    _check_result(domain, r, len(p))
+    assert r.converged
+    q = triangle_quality(r.points, r.triangles)
+    assert q.min() > q0.min()
+    assert q.mean() >= q0.mean()
+    # Corners/anchors never move; sliding nodes stay on the boundary.
+    fixed = np.flatnonzero(b.fixed)
+    out = {k: i for i, k in enumerate(r.kept.tolist()) if k >= 0}
+    assert all(np.array_equal(r.points[out[k]], p[k]) for k in fixed)
+    slid = [out[k] for k in sliding[:, 0] if k in out]
+    assert np.abs(domain.sdf(r.points[slid])).max() < 1e-6 * domain.diameter
+
+
+def test_zero_iterations_moves_nothing(disc_nodes) -> None:
+    domain, h, b, p, sliding = disc_nodes
+    r = smooth(domain, h, p, n_fixed=len(b.points), sliding=sliding, max_iterations=0)
+    assert r.converged and r.iterations == 0
+    assert np.array_equal(r.points, p[r.kept])
+
+
+def test_iteration_cap_reports_non_convergence(disc_nodes) -> None:
+    domain, h, b, p, sliding = disc_nodes
+    r = smooth(domain, h, p, n_fixed=len(b.points), sliding=sliding, max_iterations=3)
+    assert not r.converged
+    assert r.iterations == 3
+    _check_result(domain, r, len(p))
+
+
+def test_smoothing_reports_progress(disc_nodes) -> None:
+    domain, h, b, p, sliding = disc_nodes
+    events = []
+    smooth(domain, h, p, n_fixed=len(b.points), sliding=sliding, max_iterations=5,
+           callback=events.append)
+    assert [e.stage for e in events] == ["smoothing"] * 5
+    assert all(e.info["max_move"] >= 0 for e in events)
+
+
+def test_all_fixed_nodes_is_a_no_op() -> None:
+    square = Rectangle((0, 0), (1, 1))
+    p = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]], dtype=float)
+    r = smooth(square, as_size_function(0.7), p, n_fixed=5)
+    assert r.converged and r.iterations == 0
+    assert np.array_equal(r.points, p)
+    assert len(r.triangles) == 4
+
+
+# --- triangulation --------------------------------------------------------------------------
+
+
+def test_delaunay_is_counter_clockwise() -> None:
+    p = np.random.default_rng(0).random((200, 2))
+    t = delaunay(p)
+    assert t.shape[1] == 3
+    assert signed_areas(p, t).min() > 0
+
+
+@pytest.mark.parametrize(
+    "points",
+    [np.zeros((2, 2)), np.array([[0, 0], [1, 1], [2, 2], [3, 3]], dtype=float)],
+    ids=["too-few", "collinear"],
+)
+def test_delaunay_refuses_degenerate_input(points) -> None:
+    with pytest.raises(TriangulationError):
+        delaunay(points)
+
+
+def test_inside_triangles_drops_hole() -> None:
+    ring = Circle((0, 0), 1) - Circle((0, 0), 0.5)
+    ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    p = np.concatenate([np.stack([np.cos(ang), np.sin(ang)], 1) * r for r in (0.5, 0.75, 1.0)])
+    t = inside_triangles(p, delaunay(p), ring.sdf)
+    assert ring.sdf(p[t].mean(axis=1)).max() <= 0
+    # The hole is left empty: its 24 boundary edges are boundary edges of the triangulation.
+    assert len(boundary_edges(t)) == 48
+
+
+def test_inside_triangles_keeps_zero_line() -> None:
+    """d == 0 on the L-shape's interior line must not cut the mesh there."""
+    sdf = CASES["l_shape"].sdf
+    p = np.array([[0.6, 0.4], [1.0, 0.4], [0.8, 0.2], [0.8, 0.6]])
+    t = inside_triangles(p, delaunay(p), sdf)
+    assert len(t) == 2
+
+
+def test_boundary_edges_domain_on_the_left() -> None:
+    p = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+    t = np.array([[0, 1, 2], [0, 2, 3]])
+    assert signed_areas(p, t).min() > 0
+    e = boundary_edges(t)
+    assert {tuple(x) for x in e.tolist()} == {(0, 1), (1, 2), (2, 3), (3, 0)}
+
+
+def test_delaunay_far_from_origin_uses_every_point() -> None:
+    """Regression: on raw coordinates 1e6 from the origin Qhull kept 39 of these 400 points."""
+    p = np.random.default_rng(0).random((400, 2)) * 2 + [1e6, -3e6]
+    assert len(np.unique(delaunay(p))) == 400
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_coincident_free_nodes_do_not_crash_smoothing() -> None:
+    """Regression: a free node in no triangle had hbar = inf and zero force, inf * 0 = NaN, and
+    the next Delaunay failed with SciPy's 'Points cannot contain NaN'."""
+    square = Rectangle((0, 0), (1, 1))
+    p = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5], [0.5, 0.5], [0.25, 0.25]], dtype=float)
+    r = smooth(square, as_size_function(0.5), p, n_fixed=4)
+    assert np.all(np.isfinite(r.points))
