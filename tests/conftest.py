@@ -85,6 +85,9 @@ def assert_valid_mesh(mesh: Mesh, domain: Domain | Callable, *, diameter: float 
     assert resid.max() < ON_BOUNDARY * diam, f"a boundary node is off the boundary: |d| = {resid.max():.3g}"
 
     assert mesh.boundary_tags.shape == (len(be),)
+    if mesh.stats.method == "injection":
+        # Every boundary edge joins two nodes of Step 1's boundary: the mesh conforms to it.
+        assert np.all(mesh.boundary_tags >= 0), "a boundary edge is not a boundary segment"
 
 
 def canonical_triangles(triangles: np.ndarray) -> np.ndarray:

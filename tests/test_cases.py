@@ -26,16 +26,6 @@ def _domain(name: str, form: str):
     return as_domain(case.sdf, bbox=case.bbox, fixed_points=case.fixed_points)
 
 
-def _q_min_params():
-    out = []
-    for name, form in ALL:
-        marks = []
-        if name == "unit_disc":
-            marks = [pytest.mark.xfail(strict=True, reason="q_min 0.78 < paper 0.8545: known gap, see issue")]
-        out.append(pytest.param(name, form, marks=marks, id=f"{name}-{form}"))
-    return out
-
-
 @pytest.mark.parametrize(("name", "form"), ALL)
 def test_case_mesh_is_valid(name: str, form: str) -> None:
     mesh = paper_mesh(name, form)
@@ -56,7 +46,7 @@ def test_case_size_error(name: str, form: str) -> None:
     assert 0.9 <= report.ratio_mean <= 1.1
 
 
-@pytest.mark.parametrize(("name", "form"), _q_min_params())
+@pytest.mark.parametrize(("name", "form"), ALL)
 def test_case_min_quality_reaches_paper(name: str, form: str) -> None:
     q_min = paper_mesh(name, form).quality().min()
     assert q_min >= CASES[name].paper_ours.q_min

@@ -45,7 +45,9 @@ SizeFn = Callable[[FloatArray], FloatArray]
 #: Layer height as a fraction of h: the height of the equilateral triangle.
 HEIGHT = np.sqrt(3.0) / 2.0
 #: A new node closer than MERGE * h to an existing one is not injected.
-MERGE = 0.65
+MERGE = 0.6
+#: A new node closer than CLEARANCE * h to a boundary segment is not injected.
+CLEARANCE = 0.5
 #: Angle (degrees) between injected points on the arc around a reflex front vertex.
 FAN_STEP = 60.0
 
@@ -111,13 +113,14 @@ def inject_nodes(
     placed = [existing]
     n_placed = len(existing)
     tree = cKDTree(existing)
+    walls = _Walls(boundary)
     h_min = float(h(boundary.points).min())
     max_layers = int(domain.diameter / (HEIGHT * h_min)) + 10
 
     for layer in range(1, max_layers + 1):
         cand = _inject(front, h)
         cand = _respace(cand, h)
-        keep = _admissible(domain, h, cand.points, tree)
+        keep = _admissible(domain, h, cand.points, tree, walls)
         if not keep.any():
             break
         front = _survivors(cand, keep)
@@ -234,12 +237,36 @@ def _respace(front: Front, h: SizeFn) -> Front:
     return Front(out, count, closed_out)
 
 
-def _admissible(domain: Domain, h: SizeFn, q: FloatArray, tree: cKDTree) -> BoolArray:
-    """Points inside, clear of existing nodes and of lower-numbered new points."""
+class _Walls:
+    """Distance to the boundary polyline of Step 1 (not to d, which may vanish inside)."""
+
+    def __init__(self, boundary: BoundaryMesh) -> None:
+        self.p = boundary.points
+        self.tree = cKDTree(boundary.points)
+        prev = np.empty(len(boundary.points), dtype=np.intp)
+        prev[boundary.edges[:, 1]] = boundary.edges[:, 0]
+        self.prev, self.next = prev, boundary.edges[:, 1]
+
+    def distance(self, q: FloatArray) -> FloatArray:
+        """Distance to the nearest of the two boundary segments at the nearest boundary node."""
+        _, k = self.tree.query(q, k=1)
+        out = np.full(len(q), np.inf)
+        for other in (self.prev[k], self.next[k]):
+            a, b = self.p[k], self.p[other]
+            ab = b - a
+            ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+            t = np.clip(np.einsum("ij,ij->i", q - a, ab) / ab2, 0, 1)
+            out = np.minimum(out, np.hypot(*(q - a - t[:, None] * ab).T))
+        return out
+
+
+def _admissible(domain: Domain, h: SizeFn, q: FloatArray, tree: cKDTree, walls: _Walls) -> BoolArray:
+    """Points inside, clear of the boundary, of existing nodes and of lower-numbered new points."""
     if len(q) == 0:
         return np.zeros(0, dtype=bool)
     keep = domain.sdf(q) < 0
     hq = h(q)
+    keep &= walls.distance(q) >= CLEARANCE * hq
     dist, nn = tree.query(q, k=1)
     # Symmetric in the two nodes' h, so a fine front and a coarse one judge each other alike.
     keep &= dist >= MERGE * 0.5 * (hq + h(tree.data[nn]))

@@ -17,7 +17,7 @@ from .injection import inject_nodes
 from .mesh import Mesh, MeshStats
 from .progress import Callback
 from .sizing import SizeLike, as_size_function
-from .smoothing import Smoothing, smooth
+from .smoothing import Smoothing, missing_walls, smooth
 from .triangulation import boundary_edges
 
 FloatArray = NDArray[np.float64]
@@ -209,11 +209,25 @@ def _injection(
     prev[bnd.edges[:, 1]] = bnd.edges[:, 0]
     sliding = np.stack([free_b, prev[free_b], bnd.edges[free_b, 1]], axis=1)
     result = smooth(
-        domain, h, points, n_fixed=len(seeds), sliding=sliding, smoothing=smoothing,
+        domain, h, points, n_fixed=len(seeds), sliding=sliding, walls=bnd.edges, smoothing=smoothing,
         max_iterations=max_iterations, callback=callback,
     )
     seconds["smoothing"] = time.perf_counter() - t
     edges = boundary_edges(result.triangles)
+    # Boundary segments in output numbering; a segment whose node was dropped counts as lost.
+    new_index = np.full(len(points), -1)
+    old = result.kept >= 0
+    new_index[result.kept[old]] = np.flatnonzero(old)
+    walls = new_index[bnd.edges]
+    dropped = np.any(walls < 0, axis=1)
+    lost = len(missing_walls(result.triangles, walls[~dropped])) + int(dropped.sum())
+    if lost:
+        warnings.warn(
+            f"{lost} boundary segments are not edges of the mesh (a node sits too close to "
+            "them); the mesh does not follow the boundary there",
+            ConvergenceWarning,
+            stacklevel=3,
+        )
     # Tag each boundary edge with the loop of its first node (boundary nodes come first; nodes
     # added by repair have kept == -1 and are interior).
     loop_of = np.full(len(points) + 1, -1)

@@ -9,9 +9,12 @@ exact projections and keeps the nearest candidate that lies on the combined boun
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .. import _tolerances as tol
 from .base import BBox, Domain, FloatArray, as_points
+
+IntArray = NDArray[np.intp]
 
 
 class _Combination(Domain):
@@ -31,8 +34,41 @@ class _Combination(Domain):
             out.extend(child.leaves() if isinstance(child, _Combination) else [child])
         return out
 
+    def _active(self, p: FloatArray) -> tuple[FloatArray, IntArray]:
+        """d and the index (in :meth:`leaves`) of the leaf that attains it at each point."""
+        da, ia = self.a._active(p) if isinstance(self.a, _Combination) else (self.a.sdf(p), None)
+        db, ib = self.b._active(p) if isinstance(self.b, _Combination) else (self.b.sdf(p), None)
+        ia = np.zeros(len(p), dtype=np.intp) if ia is None else ia
+        ib = np.zeros(len(p), dtype=np.intp) if ib is None else ib
+        na = len(self.a.leaves()) if isinstance(self.a, _Combination) else 1
+        d, take_a = self._combine(da, db)
+        return d, np.where(take_a, ia, na + ib)
+
+    def _combine(self, da: FloatArray, db: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+        raise NotImplementedError
+
     def project(self, p: FloatArray) -> FloatArray:
+        """Project onto the leaf whose distance is active at each point.
+
+        Near the boundary the active leaf's boundary is the nearest; where its projection is
+        not on the combined boundary (close to a corner) every leaf is tried, then Newton.
+        """
         p = as_points(p)
+        on = tol.ON_BOUNDARY * self.diameter
+        leaves = self.leaves()
+        _, idx = self._active(p)
+        out = np.empty_like(p)
+        for k, leaf in enumerate(leaves):
+            sel = idx == k
+            if sel.any():
+                out[sel] = leaf.project(p[sel])
+        miss = np.abs(self.sdf(out)) >= on
+        if miss.any():
+            out[miss] = self._project_search(p[miss])
+        return out
+
+    def _project_search(self, p: FloatArray) -> FloatArray:
+        """Nearest on-boundary candidate among all leaves' projections, else Newton."""
         on = tol.ON_BOUNDARY * self.diameter
         best = Domain.project(self, p)  # generic Newton, the fallback
         best_dist = np.where(np.abs(self.sdf(best)) < on, np.hypot(*(best - p).T), np.inf)
@@ -65,6 +101,9 @@ class Union(_Combination):
     def sdf(self, p: FloatArray) -> FloatArray:
         return np.minimum(self.a.sdf(p), self.b.sdf(p))
 
+    def _combine(self, da: FloatArray, db: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+        return np.minimum(da, db), da <= db
+
     @property
     def bbox(self) -> BBox:
         a, b = self.a.bbox, self.b.bbox
@@ -79,6 +118,9 @@ class Intersection(_Combination):
     def sdf(self, p: FloatArray) -> FloatArray:
         return np.maximum(self.a.sdf(p), self.b.sdf(p))
 
+    def _combine(self, da: FloatArray, db: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+        return np.maximum(da, db), da >= db
+
     @property
     def bbox(self) -> BBox:
         a, b = self.a.bbox, self.b.bbox
@@ -92,6 +134,9 @@ class Difference(_Combination):
 
     def sdf(self, p: FloatArray) -> FloatArray:
         return np.maximum(self.a.sdf(p), -self.b.sdf(p))
+
+    def _combine(self, da: FloatArray, db: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+        return np.maximum(da, -db), da >= -db
 
     @property
     def bbox(self) -> BBox:
