@@ -42,6 +42,10 @@ Other choices the paper leaves open:
   domain keeps its place for that step.
 * **Re-triangulation.**  When some node has moved more than ``RETRIANGULATE * hbar`` since the
   last triangulation (DistMesh's ``ttol``), and once at the end, so the result is Delaunay.
+* **Boundary conformity.**  Delaunay keeps a boundary segment when no node lies in its
+  diametral circle.  At the end, free nodes found in the circle of a missing segment are pushed
+  just outside it and the nodes re-triangulated; a segment still missing is reported by
+  ``generate`` as a warning.
 * **Stopping condition.**  No node moves more than ``DPTOL * hbar`` in a step, or the cap is
   reached (then ``converged`` is False).
 """
@@ -81,6 +85,8 @@ MAX_ITERATIONS = 500
 #: Triangles below this quality are repaired; at most REPAIR_ROUNDS rounds.
 REPAIR_Q = 0.85
 REPAIR_ROUNDS = 6
+#: Spring steps after each repair round: the change is local and settles quickly.
+REPAIR_STEPS = 40
 #: Rounds of boundary-segment recovery at the end.
 CONFORM_ROUNDS = 5
 #: Final quality-driven pass: nodes whose star has q below OPTIMIZE_Q, at most OPTIMIZE_SWEEPS.
@@ -136,15 +142,6 @@ class _Relaxation:
         self.anchor = self.p.copy()
         self.retriangulations += 1
 
-    def _gabriel(self, q: FloatArray) -> FloatArray:
-        """Distance to the nearest boundary segment midpoints over half their length (< 1: inside)."""
-        a, b = self.p[self.walls[:, 0]], self.p[self.walls[:, 1]]
-        mid, half = 0.5 * (a + b), 0.5 * np.hypot(*(b - a).T)
-        k = min(3, len(mid))
-        _, j = cKDTree(mid).query(q, k=k)
-        j = j.reshape(len(q), k)
-        return np.min(np.hypot(*(q[:, None, :] - mid[j]).transpose(2, 0, 1)) / half[j], axis=1)
-
     def _spring(self, u: IntArray, v: IntArray) -> FloatArray:
         """Spring force of bars (u, v) on u, rest length h."""
         vec = self.p[u] - self.p[v]
@@ -185,14 +182,7 @@ class _Relaxation:
                 hbar[lonely] = self.h(p[lonely])
             step = DT * hbar[free, None] * total[free]
             new = p[free] + step
-            d_new = self.domain.sdf(new)
-            escaped = d_new > 0
-            near = np.flatnonzero(~escaped & (d_new > -hbar[free]))
-            if len(near) and len(self.walls):
-                # Keep boundary segments Gabriel edges (no node in their diametral circle), so
-                # that Delaunay keeps them: refuse steps that go deeper into such a circle.
-                worse = self._gabriel(new[near]) < np.minimum(1.0, self._gabriel(p[free][near]))
-                escaped[near[worse]] = True
+            escaped = self.domain.sdf(new) > 0
             new[escaped] = p[free][escaped]
             p[free] = new
             move = np.hypot(*(step[~escaped]).T) / hbar[free][~escaped]
@@ -253,8 +243,8 @@ def smooth(
         Rows ``(node, previous, next)``: boundary nodes free to slide along the boundary, with
         their neighbours on it.
     walls : (k, 2) int array, optional
-        The boundary segments of Step 1; interior nodes are kept out of their diametral circles
-        so that the final Delaunay triangulation contains them.
+        The boundary segments of Step 1; at the end, nodes inside their diametral circles are
+        pushed out so that the final Delaunay triangulation contains them (see ``_conform``).
     smoothing : {"hybrid", "attractive"}
         See the module documentation.
     max_iterations : int, optional
@@ -329,7 +319,7 @@ def _repair(
         state = _Relaxation(relax.domain, relax.h, p, relax.n_fixed, relax.slide, relax.walls,
                             relax.callback, relax.cap)
         state.iterations = iterations
-        state.run("spring", relax.cap)
+        state.run("spring", REPAIR_STEPS)
         p, tri = state.p, state.final()
         iterations = state.iterations
         triangulations += state.retriangulations
