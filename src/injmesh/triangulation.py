@@ -21,6 +21,11 @@ IntArray = NDArray[np.intp]
 FLAT = 1e-9
 
 
+#: Edge flips need the in-circle determinant above INCIRCLE * (longest side^2)^2: cocircular
+#: nodes (common in injected lattices) must not flip back and forth.
+INCIRCLE = 1e-10
+
+
 class TriangulationError(ValueError):
     """The nodes cannot be triangulated (too few, or all collinear)."""
 
@@ -67,3 +72,65 @@ def boundary_edges(triangles: IntArray) -> IntArray:
     key = np.sort(e, axis=1)
     _, inv, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     return e[count[inv.reshape(-1)] == 1]
+
+
+def flip_to_delaunay(points: FloatArray, triangles: IntArray, max_rounds: int = 100) -> IntArray | None:
+    """Restore the Delaunay property of a valid triangulation by edge flips (Lawson).
+
+    Used after nodes have moved a little: much cheaper than a new Qhull triangulation, and
+    edges with one triangle (the boundary) are never flipped, so the mesh keeps its boundary.
+    Each round flips, in parallel, the interior edges whose opposite node lies inside the
+    circumcircle, at most one flip per triangle (worst violation first).
+
+    Returns
+    -------
+    (m, 3) int array or None
+        Counter-clockwise triangles, or None when the input has an inverted or flat triangle
+        (flips cannot repair that: triangulate from scratch).
+    """
+    tri = np.array(triangles, dtype=np.intp, copy=True)
+    if len(tri) == 0 or np.any(signed_areas(points, tri) <= 0):
+        return None
+    m = len(tri)
+    n = len(points)
+    for _ in range(max_rounds):
+        # Edge opposite corner k of triangle t is (tri[t, k+1], tri[t, k+2]).
+        u = tri[:, [1, 2, 0]].ravel()
+        v = tri[:, [2, 0, 1]].ravel()
+        key = np.minimum(u, v).astype(np.int64) * n + np.maximum(u, v)
+        order = np.argsort(key, kind="stable")
+        ks = key[order]
+        pair = np.flatnonzero(ks[1:] == ks[:-1])
+        if len(pair) == 0:
+            return tri
+        h1, h2 = order[pair], order[pair + 1]  # half-edges: triangle * 3 + corner
+        t1, k1 = np.divmod(h1, 3)
+        t2, k2 = np.divmod(h2, 3)
+        a = tri[t1, k1]
+        b = tri[t2, k2]
+        uu = tri[t1, (k1 + 1) % 3]
+        vv = tri[t1, (k1 + 2) % 3]
+        # In-circle test of b against the counter-clockwise triangle (a, uu, vv).
+        pa, pu, pv = points[a] - points[b], points[uu] - points[b], points[vv] - points[b]
+        la = np.einsum("ij,ij->i", pa, pa)
+        lu = np.einsum("ij,ij->i", pu, pu)
+        lv = np.einsum("ij,ij->i", pv, pv)
+        det = (pa[:, 0] * (pu[:, 1] * lv - lu * pv[:, 1])
+               - pa[:, 1] * (pu[:, 0] * lv - lu * pv[:, 0])
+               + la * (pu[:, 0] * pv[:, 1] - pu[:, 1] * pv[:, 0]))
+        scale = np.maximum(np.maximum(la, lu), lv) ** 2
+        bad = np.flatnonzero(det > INCIRCLE * scale)
+        if len(bad) == 0:
+            return tri
+        # At most one flip per triangle, worst first.
+        bad = bad[np.argsort(-det[bad] / scale[bad], kind="stable")]
+        first = np.full(m, len(bad))
+        rank = np.arange(len(bad))
+        np.minimum.at(first, t1[bad], rank)
+        np.minimum.at(first, t2[bad], rank)
+        ok = (first[t1[bad]] == rank) & (first[t2[bad]] == rank)
+        f = bad[ok]
+        # (a, uu, vv) + (b, vv, uu) -> (a, uu, b) + (a, b, vv): both counter-clockwise.
+        tri[t1[f]] = np.stack([a[f], uu[f], b[f]], axis=1)
+        tri[t2[f]] = np.stack([a[f], b[f], vv[f]], axis=1)
+    return tri
