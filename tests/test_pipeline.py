@@ -370,3 +370,49 @@ def test_rectangle_mesh_area_is_exact() -> None:
     mesh = injmesh.generate(rect, 0.15)
     assert_valid_mesh(mesh, rect)
     assert mesh.areas().sum() == pytest.approx(2.0, rel=1e-12)
+
+
+# --- robustness: features at or below the element size ----------------------------------------
+
+
+def test_hole_smaller_than_h_is_left_out_with_a_warning() -> None:
+    plate = Rectangle((0, 0), (1, 1)) - Circle((0.5, 0.5), 0.01)
+    with pytest.warns(UserWarning, match="smaller than the elements"):
+        mesh = injmesh.generate(plate, 0.2)
+    assert_valid_mesh(mesh, Rectangle((0, 0), (1, 1)))
+    assert np.array_equal(np.unique(mesh.boundary_tags), [0])
+
+
+def test_coarse_hole_leaves_no_gap_in_the_mesh() -> None:
+    """A hole carrying five nodes: triangles next to its chords have centroids beyond the true
+    circle, yet they are inside the meshed pentagon and must be kept (no gap, no tag -1)."""
+    plate = Rectangle((-1, -1), (1, 1)) - Circle((0, 0), 0.16)
+    mesh = injmesh.generate(plate, lambda p: 0.1 + 0.3 * np.hypot(p[:, 0], p[:, 1]))
+    assert np.all(mesh.boundary_tags >= 0)
+    hole = mesh.boundary_edges[mesh.boundary_tags == 1]
+    polygon = mesh.points[hole]
+    hole_area = -0.5 * np.sum(polygon[:, 0, 0] * polygon[:, 1, 1] - polygon[:, 1, 0] * polygon[:, 0, 1])
+    assert mesh.areas().sum() == pytest.approx(4.0 - hole_area, rel=1e-9)
+
+
+def test_small_hole_under_strong_grading_keeps_distinct_nodes() -> None:
+    """Regression: Eq. 3.3 applied in the plane drifted the few nodes of a small, strongly
+    graded hole onto one point; balancing on arc length keeps them apart."""
+    plate = Rectangle((-1, -1), (1, 1)) - Circle((0, 0), 0.09)
+    mesh = injmesh.generate(plate, lambda p: 0.044 + 0.18 * np.hypot(p[:, 0] + 0.3, p[:, 1] - 0.4))
+    assert_valid_mesh(mesh, plate)
+    e = mesh.boundary_edges[mesh.boundary_tags == 1]
+    lengths = np.hypot(*(mesh.points[e[:, 0]] - mesh.points[e[:, 1]]).T)
+    assert len(e) >= 3 and lengths.min() > 0.5 * lengths.max()
+    assert mesh.quality().min() > 0.5
+
+
+def test_spike_narrower_than_h_conforms() -> None:
+    """A 10-degree spike: its boundary segments are split where they are encroached, so the
+    mesh keeps every boundary segment.  (Smoothing may report non-convergence at such a tip.)"""
+    spike = Polygon([(0, 0), (1, 0), (1, 0.5), (-1.5, 0.55), (0, 0.4)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", injmesh.ConvergenceWarning)
+        mesh = injmesh.generate(spike, 0.1)
+    assert_valid_mesh(mesh, spike)
+    assert mesh.areas().sum() == pytest.approx(spike.area, rel=1e-9)

@@ -36,3 +36,10 @@ BOUNDARY_REFINE = 0.25
 #: BALANCE_ITERATIONS sweeps.
 BALANCE_TOL = 1e-4
 BALANCE_ITERATIONS = 200
+
+#: Rounds of splitting boundary segments encroached by other boundary nodes (see boundary.py).
+ENCROACH_ROUNDS = 8
+
+#: A boundary curve shorter than TINY_LOOP * h (integrated) is smaller than the elements and
+#: is left out with a warning.
+TINY_LOOP = 1.5

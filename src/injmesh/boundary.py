@@ -13,8 +13,10 @@ Every boundary curve (outer boundary and each hole) is partitioned into segments
    h-length, then projected.  This is the choice the paper leaves open: Algorithm 2's bisection
    alone yields powers of two per initial segment, up to 40 % off the count h implies.
 3. **1-D balancing** (Eq. 3.3, Algorithm 3).  Each free node moves to the h-weighted mean of the
-   midpoints of its two segments and is projected back.  *Stopping condition*: no node moves
-   more than ``BALANCE_TOL * h``, or ``BALANCE_ITERATIONS`` sweeps.
+   midpoints of its two segments, in the arc-length coordinate of the refined curve (truly
+   one-dimensional: nodes keep their order however coarse the loop), and is finally projected
+   (3.2).  *Stopping condition*: no node moves more than ``BALANCE_TOL * h``, or
+   ``BALANCE_ITERATIONS`` sweeps.
 
 Loops come out with the domain on their left (outer boundary counter-clockwise, holes
 clockwise), largest enclosed area first; that order is the boundary tag.
@@ -22,11 +24,13 @@ clockwise), largest enclosed area first; that order is the boundary tag.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from . import _tolerances as tol
 from .geometry import Domain, GeometryError
@@ -116,6 +120,7 @@ def mesh_boundary(
     if not loops:
         raise GeometryError("the domain has no boundary inside its bounding box")
     loops.sort(key=lambda lp: -abs(_area(lp)))
+    loops = _drop_tiny(loops, h)
 
     corners = domain.corners()
     if len(fixed_points):
@@ -137,10 +142,61 @@ def mesh_boundary(
     points = np.concatenate(pts)
     fixed_mask = np.concatenate(fixed)
     node_loop = np.concatenate(loop_id)
-    prev, nxt = _neighbours(node_loop)
-    points = _balance(domain, h, points, fixed_mask, prev, nxt)
+    points, fixed_mask, node_loop = _split_encroached(domain, points, fixed_mask, node_loop)
+    _, nxt = _neighbours(node_loop)
     edges = np.stack([np.arange(len(points)), nxt], axis=1)
     return BoundaryMesh(points, edges, node_loop, fixed_mask)
+
+
+def _drop_tiny(loops: list[FloatArray], h: SizeFn) -> list[FloatArray]:
+    """Drop boundary curves shorter than ``TINY_LOOP`` times h, with a warning.
+
+    Such a curve (a hole or an island smaller than the elements, a sliver where two curves
+    almost touch) cannot carry three nodes without elements far smaller than h.
+    """
+    keep = []
+    for k, loop in enumerate(loops):
+        closed = np.concatenate([loop, loop[:1]])
+        hlen = float(np.sum(np.hypot(*np.diff(closed, axis=0).T) / h(0.5 * (closed[1:] + closed[:-1]))))
+        if hlen >= tol.TINY_LOOP or k == 0:
+            keep.append(loop)
+        else:
+            c = loop.mean(axis=0)
+            warnings.warn(
+                f"a boundary curve near ({c[0]:.4g}, {c[1]:.4g}) is {hlen:.2g} h long, shorter "
+                f"than {tol.TINY_LOOP} h: it is smaller than the elements and is left out",
+                stacklevel=4,
+            )
+    return keep
+
+
+def _split_encroached(
+    domain: Domain, p: FloatArray, fixed: NDArray[np.bool_], node_loop: IntArray
+) -> tuple[FloatArray, NDArray[np.bool_], IntArray]:
+    """Split boundary segments whose diametral circle holds another boundary node.
+
+    Delaunay triangulation keeps a segment only if no node lies in that circle; a spike
+    narrower than h or a hole close to the outer boundary would otherwise lose segments.  The
+    projected midpoint is inserted (Ruppert's segment splitting), at most ``ENCROACH_ROUNDS``
+    times, which refines the boundary locally where features are thinner than h.
+    """
+    for _ in range(tol.ENCROACH_ROUNDS):
+        _, nxt = _neighbours(node_loop)
+        mid = 0.5 * (p + p[nxt])
+        radius = 0.5 * np.hypot(*(p[nxt] - p).T)
+        k = min(3, len(p))
+        dist, near = cKDTree(p).query(mid, k=k)
+        own = (near == np.arange(len(p))[:, None]) | (near == nxt[:, None])
+        split = np.any(~own & (dist < radius[:, None] * (1 - 1e-9)), axis=1)
+        if not split.any():
+            break
+        new = domain.project(mid[split])
+        key = np.concatenate([np.arange(len(p), dtype=float), np.flatnonzero(split) + 0.5])
+        order = np.argsort(key, kind="stable")
+        p = np.concatenate([p, new])[order]
+        fixed = np.concatenate([fixed, np.zeros(len(new), dtype=bool)])[order]
+        node_loop = np.concatenate([node_loop, node_loop[split]])[order]
+    return p, fixed, node_loop
 
 
 def _area(loop: FloatArray) -> float:
@@ -227,10 +283,19 @@ def _refine(
 def _select(
     domain: Domain, h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_]
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """Lay ``round(S)`` segments at equal h-length between consecutive fixed vertices."""
+    """Lay ``round(S)`` segments at equal h-length between fixed vertices, then balance them.
+
+    ``p`` is the refined closed polyline of one loop, starting at a fixed vertex.  Nodes are
+    handled by their arc length t along it, so balancing (Eq. 3.3) is truly one-dimensional:
+    each node stays between the midpoints of its two segments and nodes can neither cross nor
+    collapse, however few there are on a tightly curved loop (in the plane, chord midpoints
+    and projection made Eq. 3.3 drift there).
+    """
     closed = np.concatenate([p, p[:1]])
-    seg = np.diff(closed, axis=0)
-    ds = np.hypot(*seg.T) / h(0.5 * (closed[1:] + closed[:-1]))
+    seglen = np.hypot(*np.diff(closed, axis=0).T)
+    arc = np.concatenate([[0.0], np.cumsum(seglen)])
+    total = float(arc[-1])
+    ds = seglen / h(0.5 * (closed[1:] + closed[:-1]))
     s = np.concatenate([[0.0], np.cumsum(ds)])
     fixed_idx = np.r_[np.flatnonzero(fixed), len(p)]  # fixed[0] is True; len(p) closes the loop
     s_start = s[fixed_idx[:-1]]
@@ -240,37 +305,43 @@ def _select(
         count[np.argmax(span)] += 3 - count.sum()
     piece = np.repeat(np.arange(len(count)), count)
     k = np.arange(len(piece)) - np.repeat(np.cumsum(count) - count, count)
-    target = s_start[piece] + k * span[piece] / count[piece]
-    out = np.stack([np.interp(target, s, closed[:, 0]), np.interp(target, s, closed[:, 1])], axis=1)
+    t = np.interp(s_start[piece] + k * span[piece] / count[piece], s, arc)
+    t[k == 0] = arc[fixed_idx[:-1]]
+    t = _balance(h, t, k == 0, arc, closed, total)
+    out = np.stack([np.interp(t, arc, closed[:, 0]), np.interp(t, arc, closed[:, 1])], axis=1)
     new_fixed = k == 0
     out[new_fixed] = p[fixed_idx[:-1]]
     free = ~new_fixed
     if free.any():
-        out[free] = domain.project(out[free])
+        out[free] = domain.project(out[free])  # Eq. 3.2
     return out, new_fixed
 
 
 def _balance(
-    domain: Domain,
     h: SizeFn,
-    p: FloatArray,
+    t: FloatArray,
     fixed: NDArray[np.bool_],
-    prev: IntArray,
-    nxt: IntArray,
+    arc: FloatArray,
+    closed: FloatArray,
+    total: float,
 ) -> FloatArray:
-    """Algorithm 3: move each free node between the midpoints of its segments (Eq. 3.3)."""
-    free = np.flatnonzero(~fixed)
-    if len(free) == 0:
-        return p
-    p = p.copy()
+    """Algorithm 3 on arc length: each free node goes to the h-weighted mean (Eq. 3.3) of the
+    midpoints of its two segments, until no node moves ``BALANCE_TOL * h``."""
+    free = ~fixed
+    if not free.any():
+        return t
+    t = t.copy()
     for _ in range(tol.BALANCE_ITERATIONS):
-        m = 0.5 * (p + p[nxt])  # midpoint of segment (i, next i)
-        w = 1.0 / h(m)
-        a, b = prev[free], free  # the segments before and after each free node
-        new = (m[a] * w[a, None] + m[b] * w[b, None]) / (w[a] + w[b])[:, None]  # Eq. 3.3
-        new = domain.project(new)  # Eq. 3.2
-        move = np.hypot(*(new - p[free]).T) / (1.0 / w[b])
-        p[free] = new
+        nxt = np.roll(t, -1)
+        nxt[-1] += total  # the segment from the last node back to the first
+        mid = 0.5 * (t + nxt)  # midpoint of the segment after each node
+        at = np.mod(mid, total)
+        w = 1.0 / h(np.stack([np.interp(at, arc, closed[:, 0]), np.interp(at, arc, closed[:, 1])], 1))
+        before, w_before = np.roll(mid, 1), np.roll(w, 1)
+        before[0] -= total
+        new = (before * w_before + mid * w) / (w_before + w)  # Eq. 3.3
+        move = np.abs(new - t)[free] * w[free]
+        t[free] = new[free]
         if move.max() < tol.BALANCE_TOL:
             break
-    return p
+    return t

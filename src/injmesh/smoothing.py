@@ -113,9 +113,10 @@ class SmoothResult:
     retriangulations: int
 
 
-def triangulate(domain: Domain, p: FloatArray) -> IntArray:
-    """Delaunay triangles of ``p`` with those outside the domain removed."""
-    return inside_triangles(p, delaunay(p), domain.sdf)
+def triangulate(domain: Domain, p: FloatArray, walls: IntArray | None = None) -> IntArray:
+    """Delaunay triangles of ``p`` with those outside the domain (or outside the boundary
+    segments ``walls``, near the boundary) removed."""
+    return inside_triangles(p, delaunay(p), domain.sdf, walls)
 
 
 class _Relaxation:
@@ -137,7 +138,7 @@ class _Relaxation:
         self.callback, self.cap = callback, cap
         self.iterations = 0
         self.retriangulations = 0
-        self.tri = triangulate(domain, p)
+        self.tri = triangulate(domain, p, walls)
         self._connect()
 
     def _connect(self) -> None:
@@ -149,7 +150,7 @@ class _Relaxation:
         # Nodes moved a little since the last triangulation: flips restore Delaunay far more
         # cheaply than Qhull; an inverted triangle sends us back to Qhull.
         tri = flip_to_delaunay(self.p, self.tri)
-        self.tri = triangulate(self.domain, self.p) if tri is None else tri
+        self.tri = triangulate(self.domain, self.p, self.walls) if tri is None else tri
         self._connect()
 
     def _spring(self, u: IntArray, v: IntArray) -> FloatArray:
@@ -342,7 +343,7 @@ def _repair(
             best = (qmin, p.copy(), None, cur_kept)
     final = best[2]
     if final is None:
-        final = triangulate(relax.domain, best[1])
+        final = triangulate(relax.domain, best[1], relax.walls)
         triangulations += 1
     return best[1], final, best[3], iterations, triangulations
 
@@ -385,7 +386,7 @@ def _conform(
                 v = p[inside] - c
                 dist = np.maximum(np.hypot(*v.T), 1e-300)
                 p[inside] = c + v * (1.05 * r / dist)[:, None]
-        tri = triangulate(domain, p)
+        tri = triangulate(domain, p, walls)
         count += 1
     return p, tri, count
 

@@ -49,21 +49,48 @@ def delaunay(points: FloatArray) -> IntArray:
 
 
 def inside_triangles(
-    points: FloatArray, triangles: IntArray, sdf: Callable[[FloatArray], FloatArray]
+    points: FloatArray,
+    triangles: IntArray,
+    sdf: Callable[[FloatArray], FloatArray],
+    walls: IntArray | None = None,
 ) -> IntArray:
-    """Keep the triangles whose centroid lies inside the domain (``d < 0``).
+    """Keep the triangles whose centroid lies inside the domain.
 
     ``d <= 0`` counts as inside, as in boundary tracing: a d that vanishes along an interior line
-    (the paper's L-shape) must not cut the mesh there.
+    (the paper's L-shape) must not cut the mesh there.  With ``walls``, the boundary segments
+    ``(k, 2)`` actually meshed, a centroid within one edge length of the boundary is tested
+    against that polygon instead (even-odd rule): next to a coarse curved boundary the centroid
+    of a valid triangle can lie beyond the true curve (a hole carrying five nodes, say).
     """
     centroids = points[triangles].mean(axis=1)
-    keep = sdf(centroids) <= 0
+    d = sdf(centroids)
+    keep = d <= 0
+    if walls is not None and len(walls):
+        e = points[triangles] - points[triangles][:, [1, 2, 0]]
+        reach = np.sqrt(np.max(np.einsum("mki,mki->mk", e, e), axis=1))
+        near = np.flatnonzero(np.abs(d) < reach)
+        if len(near):
+            keep[near] = _inside_polygon(centroids[near], points[walls[:, 0]], points[walls[:, 1]])
     # Qhull may return flat triangles of collinear nodes on a concave straight boundary: their
     # centroid is on the boundary, so the sign test alone would keep them.
     e = points[triangles] - points[triangles][:, [1, 2, 0]]
     longest2 = np.max(np.einsum("mki,mki->mk", e, e), axis=1)
     keep &= np.abs(signed_areas(points, triangles)) > FLAT * longest2
     return triangles[keep]
+
+
+def _inside_polygon(q: FloatArray, a: FloatArray, b: FloatArray) -> NDArray[np.bool_]:
+    """Even-odd test of points ``q`` against the segments ``a[i] -> b[i]`` (chunked)."""
+    inside = np.zeros(len(q), dtype=bool)
+    step = max(1, 2_000_000 // max(len(a), 1))
+    for s in range(0, len(q), step):
+        y = q[s : s + step, 1:2]
+        x = q[s : s + step, 0:1]
+        crosses = (a[:, 1] > y) != (b[:, 1] > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xint = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
+        inside[s : s + step] = np.count_nonzero(crosses & (x < xint), axis=1) % 2 == 1
+    return inside
 
 
 def boundary_edges(triangles: IntArray) -> IntArray:
