@@ -65,3 +65,28 @@ def test_random_rectangle_is_covered_exactly(w: float, aspect: float, h: float) 
     mesh = injmesh.generate(rect, h)
     assert_valid_mesh(mesh, rect)
     assert math.isclose(mesh.areas().sum(), w * w * aspect, rel_tol=1e-9)
+
+
+@SETTINGS
+@given(
+    vertices=star_polygons(),
+    centre=st.tuples(st.floats(-0.5, 0.5), st.floats(-0.5, 0.5)),
+    base=st.floats(0.04, 0.1),
+    slope=st.floats(0.0, 0.3),
+)
+def test_random_star_polygon_with_graded_size(
+    vertices: np.ndarray, centre: tuple[float, float], base: float, slope: float
+) -> None:
+    """Graded h: the mesh is valid and conforms to its boundary (checked exactly by
+    assert_valid_mesh), covers the polygon to 1 % (a vertex turning by less than CORNER_ANGLE
+    is not a corner: the boundary treats it as a smooth curve sampled at h) and follows h."""
+    poly = Polygon(vertices)
+    cx, cy = centre
+
+    def h(p: np.ndarray) -> np.ndarray:
+        return base + slope * np.hypot(p[:, 0] - cx, p[:, 1] - cy)
+
+    mesh = injmesh.generate(poly, h)
+    assert_valid_mesh(mesh, poly)
+    assert math.isclose(mesh.areas().sum(), _polygon_area(vertices), rel_tol=1e-2)
+    assert mesh.size_report().relative < 0.2
