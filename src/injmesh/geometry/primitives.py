@@ -118,6 +118,8 @@ class Polygon(Domain):
 
     def _nearest(self, p: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Distance to the nearest edge, the nearest boundary point, and inside flags."""
+        if len(self._a) <= 64:
+            return self._nearest_by_edge(p)
         a, b = self._a, self._b
         ab = b - a
         ab2 = np.einsum("ij,ij->i", ab, ab)
@@ -143,6 +145,26 @@ class Polygon(Domain):
                 xint = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
             inside[s : s + step] = np.count_nonzero(crosses & (q[..., 0] < xint), axis=1) % 2 == 1
         return dist, near, inside
+
+    def _nearest_by_edge(self, p: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """:meth:`_nearest` for few edges: a loop over edges, vectorised over the points."""
+        x, y = p[:, 0], p[:, 1]
+        best = np.full(len(p), np.inf)
+        near = np.empty_like(p)
+        parity = np.zeros(len(p), dtype=bool)
+        for (ax, ay), (bx, by) in zip(self._a, self._b, strict=True):
+            ex, ey = bx - ax, by - ay
+            t = np.clip(((x - ax) * ex + (y - ay) * ey) / (ex * ex + ey * ey), 0.0, 1.0)
+            fx, fy = ax + t * ex, ay + t * ey
+            d2 = (x - fx) ** 2 + (y - fy) ** 2
+            closer = d2 < best
+            best = np.where(closer, d2, best)
+            near[closer, 0] = fx[closer]
+            near[closer, 1] = fy[closer]
+            if ay != by:
+                crosses = (ay > y) != (by > y)
+                parity ^= crosses & (x < ax + (y - ay) * ex / ey)
+        return np.sqrt(best), near, parity
 
     def sdf(self, p: FloatArray) -> FloatArray:
         dist, _, inside = self._nearest(as_points(p))
