@@ -20,6 +20,7 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from .errors import ConvergenceWarning, NodeBudgetError
 from .geometry import (
     Circle,
     Difference,
@@ -32,7 +33,7 @@ from .geometry import (
     Union,
 )
 from .mesh import Mesh, MeshStats
-from .pipeline import ConvergenceWarning, NodeBudgetError, generate
+from .pipeline import generate
 from .progress import Progress
 from .sizing import SizeError
 

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from . import _tolerances as tol
+from .errors import NodeBudgetError
 from .geometry import Domain, GeometryError
 from .geometry.tracing import grid_spacing, sample_grid
 from .progress import Callback, report
@@ -107,8 +108,6 @@ def mesh_boundary(
     -------
     BoundaryMesh
     """
-    from .pipeline import NodeBudgetError
-
     h_min, expected = estimate_nodes(domain, h)
     if expected > max_nodes:
         raise NodeBudgetError(
@@ -143,7 +142,7 @@ def mesh_boundary(
     fixed_mask = np.concatenate(fixed)
     node_loop = np.concatenate(loop_id)
     points, fixed_mask, node_loop = _split_encroached(domain, points, fixed_mask, node_loop)
-    _, nxt = _neighbours(node_loop)
+    nxt = _next(node_loop)
     edges = np.stack([np.arange(len(points)), nxt], axis=1)
     return BoundaryMesh(points, edges, node_loop, fixed_mask)
 
@@ -181,7 +180,7 @@ def _split_encroached(
     times, which refines the boundary locally where features are thinner than h.
     """
     for _ in range(tol.ENCROACH_ROUNDS):
-        _, nxt = _neighbours(node_loop)
+        nxt = _next(node_loop)
         mid = 0.5 * (p + p[nxt])
         radius = 0.5 * np.hypot(*(p[nxt] - p).T)
         k = min(3, len(p))
@@ -204,16 +203,14 @@ def _area(loop: FloatArray) -> float:
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
 
-def _neighbours(node_loop: IntArray) -> tuple[IntArray, IntArray]:
-    """Previous and next node of each node along its (closed) loop."""
+def _next(node_loop: IntArray) -> IntArray:
+    """Next node of each node along its (closed) loop."""
     idx = np.arange(len(node_loop))
     start = np.flatnonzero(np.r_[True, node_loop[1:] != node_loop[:-1]])
     end = np.r_[start[1:], len(node_loop)] - 1
     first = np.repeat(start, end - start + 1)
     last = np.repeat(end, end - start + 1)
-    nxt = np.where(idx == last, first, idx + 1)
-    prev = np.where(idx == first, last, idx - 1)
-    return prev, nxt
+    return np.where(idx == last, first, idx + 1)
 
 
 def _insert_corners(

@@ -121,7 +121,7 @@ def distmesh(
     max_iterations : int, optional
         Cap on iterations, default ``DEFAULT_MAX_ITERATIONS`` (10000).
     max_nodes : int
-        Raise :class:`~injmesh.pipeline.NodeBudgetError` when the initial grid over the bounding
+        Raise :class:`~injmesh.errors.NodeBudgetError` when the initial grid over the bounding
         box would hold more points than this.
     callback : callable, optional
         Receives a :class:`~injmesh.progress.Progress` with stage ``"distmesh"`` every
@@ -360,7 +360,7 @@ def boundary_components(points: FloatArray, edges: IntArray) -> IntArray:
 
 def _check_budget(domain: Domain, h0: float, max_nodes: int) -> None:
     """Raise NodeBudgetError before allocating a grid with more than ``max_nodes`` points."""
-    from .pipeline import NodeBudgetError
+    from .errors import NodeBudgetError
 
     nx, ny = _grid_shape(domain.bbox, h0)
     if nx * ny > max_nodes:

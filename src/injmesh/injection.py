@@ -33,7 +33,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from ._arrays import lower_wins
 from .boundary import BoundaryMesh
+from .errors import NodeBudgetError
 from .geometry import Domain
 from .progress import Callback, report
 
@@ -106,8 +108,6 @@ def inject_nodes(
     (n, 2) array
         The injected nodes only, in injection order.
     """
-    from .pipeline import NodeBudgetError
-
     counts = np.bincount(boundary.node_loop)
     front = Front(boundary.points, counts, np.ones(len(counts), dtype=bool))
     placed = [existing]
@@ -278,26 +278,8 @@ def _admissible(domain: Domain, h: SizeFn, q: FloatArray, tree: cKDTree, walls: 
             lo, hi = np.minimum(i, j), np.maximum(i, j)
             close = np.hypot(*(q[lo] - q[hi]).T) < MERGE * 0.5 * (hq[lo] + hq[hi])
             lo, hi = lo[close], hi[close]
-            keep = _lower_wins(keep, lo, hi)
+            keep = lower_wins(keep, lo, hi)
     return keep
-
-
-def _lower_wins(keep: BoolArray, lo: IntArray, hi: IntArray) -> BoolArray:
-    """Greedy independent set in index order: a point survives unless a lower survivor conflicts.
-
-    Computed in parallel rounds: a point is decided once all its lower partners are decided.
-    """
-    kept = np.zeros(len(keep), dtype=bool)
-    undecided = keep.copy()
-    while undecided.any():
-        waiting = np.zeros(len(keep), dtype=bool)
-        waiting[hi[undecided[lo]]] = True
-        ready = undecided & ~waiting
-        beaten = np.zeros(len(keep), dtype=bool)
-        beaten[hi[kept[lo]]] = True
-        kept |= ready & ~beaten
-        undecided &= ~ready
-    return kept
 
 
 def _survivors(front: Front, keep: BoolArray) -> Front:

@@ -36,8 +36,9 @@ import numpy as np
 
 from .cases import CASES, Case, get_case
 from .distmesh import GEPS_FACTOR, initial_points
+from .errors import ConvergenceWarning
 from .mesh import Mesh
-from .pipeline import ConvergenceWarning, generate
+from .pipeline import generate
 from .triangulation import delaunay
 
 if TYPE_CHECKING:

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .boundary import BoundaryMesh, mesh_boundary
+from .errors import ConvergenceWarning
 from .geometry import Domain, as_domain
 from .geometry.base import as_points
 from .injection import inject_nodes
@@ -23,14 +24,6 @@ from .triangulation import boundary_edges
 FloatArray = NDArray[np.float64]
 
 DEFAULT_MAX_NODES = 5_000_000
-
-
-class NodeBudgetError(ValueError):
-    """The size function asks for more nodes than ``max_nodes`` allows."""
-
-
-class ConvergenceWarning(UserWarning):
-    """Smoothing stopped at its iteration cap before meeting its convergence test."""
 
 
 def generate(

@@ -63,6 +63,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from ._arrays import lower_wins
 from .geometry import Domain
 from .progress import Callback, report
 from .quality import triangle_quality, unique_edges
@@ -403,7 +404,6 @@ def _optimize(
     form an independent set, so each triangle changes by one node at most.  The connectivity
     is kept: the result is valid but not necessarily Delaunay.
     """
-    from .injection import _lower_wins
     from .quality import signed_areas
 
     p = p.copy()
@@ -433,7 +433,7 @@ def _optimize(
         edges = unique_edges(tri)
         both = cand[edges[:, 0]] & cand[edges[:, 1]]
         ra, rb = rank[edges[both, 0]], rank[edges[both, 1]]
-        keep = _lower_wins(cand[order], np.minimum(ra, rb), np.maximum(ra, rb))
+        keep = lower_wins(cand[order], np.minimum(ra, rb), np.maximum(ra, rb))
         move = order[keep]
         on_bnd = move < n_fixed
         # Line search: the full step to the target, then shorter ones, until the star improves.
