@@ -416,3 +416,14 @@ def test_spike_narrower_than_h_conforms() -> None:
         mesh = injmesh.generate(spike, 0.1)
     assert_valid_mesh(mesh, spike)
     assert mesh.areas().sum() == pytest.approx(spike.area, rel=1e-9)
+
+
+def test_fixed_points_are_exact_nodes_of_the_injection_mesh() -> None:
+    """User points inside (and on) the domain are mesh nodes, untouched by smoothing, repair
+    and the quality pass."""
+    fixed = np.array([[0.3, 0.2], [-0.4, 0.1], [0.0, -0.5], [1.0, 0.0]])
+    mesh = injmesh.generate(DISC, 0.1, fixed_points=fixed)
+    assert_valid_mesh(mesh, DISC)
+    for f in fixed:
+        assert np.hypot(*(mesh.points - f).T).min() == 0.0
+    assert mesh.quality().min() > 0.6
