@@ -374,3 +374,18 @@ def _reference_nearest(poly: Polygon, q: np.ndarray):
         xint = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
     inside = np.count_nonzero(crosses & (q[:, None, 0] < xint), axis=1) % 2 == 1
     return np.sqrt(d2[rows, k]), foot[rows, k], inside
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_csg_projection_lands_on_the_boundary_near_corners(name: str) -> None:
+    """Random points, and points scattered around every corner (inside and out), project onto
+    the boundary: beyond a convex corner the foot is the corner itself."""
+    g = CASES[name].geometry
+    rng = np.random.default_rng(1)
+    x0, y0, x1, y1 = g.bbox
+    p = rng.uniform([x0 - 0.1, y0 - 0.1], [x1 + 0.1, y1 + 0.1], (4000, 2))
+    c = g.corners()
+    if len(c):
+        p = np.concatenate([p, c[rng.integers(0, len(c), 2000)] + rng.normal(scale=0.01, size=(2000, 2))])
+    foot = g.project(p)
+    assert np.abs(g.sdf(foot)).max() < 2e-6 * g.diameter

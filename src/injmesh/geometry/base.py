@@ -66,6 +66,10 @@ class Domain(ABC):
     def __call__(self, p: FloatArray) -> FloatArray:
         return self.sdf(p)
 
+    #: True when :meth:`sdf` is an exact signed distance (1-Lipschitz), which some shortcuts
+    #: rely on; a plain callable makes no such promise.
+    exact_distance: bool = False
+
     @property
     def diameter(self) -> float:
         """Length of the bounding box's diagonal: the scale of relative tolerances."""

@@ -23,6 +23,7 @@ class _Combination(Domain):
     def __init__(self, a: Domain, b: Domain) -> None:
         self.a = a
         self.b = b
+        self._corners: FloatArray | None = None
 
     def __repr__(self) -> str:
         return f"({self.a!r} {self.symbol} {self.b!r})"
@@ -34,41 +35,60 @@ class _Combination(Domain):
             out.extend(child.leaves() if isinstance(child, _Combination) else [child])
         return out
 
-    def _active(self, p: FloatArray) -> tuple[FloatArray, IntArray]:
-        """d and the index (in :meth:`leaves`) of the leaf that attains it at each point."""
-        da, ia = self.a._active(p) if isinstance(self.a, _Combination) else (self.a.sdf(p), None)
-        db, ib = self.b._active(p) if isinstance(self.b, _Combination) else (self.b.sdf(p), None)
-        ia = np.zeros(len(p), dtype=np.intp) if ia is None else ia
-        ib = np.zeros(len(p), dtype=np.intp) if ib is None else ib
+    @property
+    def exact_distance(self) -> bool:  # type: ignore[override]
+        return all(leaf.exact_distance for leaf in self.leaves())
+
+    def _active(self, p: FloatArray) -> tuple[FloatArray, IntArray, FloatArray]:
+        """d, the index (in :meth:`leaves`) of the leaf that attains it, and the margin: how far
+        the chosen operand leads the other one at every min/max on the way down."""
+        d_a, i_a, m_a = _active_of(self.a, p)
+        d_b, i_b, m_b = _active_of(self.b, p)
         na = len(self.a.leaves()) if isinstance(self.a, _Combination) else 1
-        d, take_a = self._combine(da, db)
-        return d, np.where(take_a, ia, na + ib)
+        d, take_a = self._combine(d_a, d_b)
+        va, vb = self._values(d_a, d_b)
+        lead = np.abs(va - vb)
+        margin = np.minimum(np.where(take_a, m_a, m_b), lead)
+        return d, np.where(take_a, i_a, na + i_b), margin
 
     def _combine(self, da: FloatArray, db: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
         raise NotImplementedError
+
+    def _values(self, da: FloatArray, db: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The two values the min or max compares."""
+        return da, db
 
     def project(self, p: FloatArray) -> FloatArray:
         """Project onto the leaf whose distance is active at each point.
 
         Near the boundary the active leaf's boundary is the nearest; where its projection is
-        not on the combined boundary (close to a corner) every leaf is tried, then Newton.
+        not on the combined boundary (close to a corner) every leaf is tried, then Newton.  With
+        exact distances (1-Lipschitz leaves) a point whose active operand leads by more than
+        2|d| everywhere keeps that leaf active over the whole move to its foot, so the foot is
+        on the combined boundary without checking.
         """
         p = as_points(p)
         on = tol.ON_BOUNDARY * self.diameter
         leaves = self.leaves()
-        _, idx = self._active(p)
+        d, idx, margin = self._active(p)
         out = np.empty_like(p)
         for k, leaf in enumerate(leaves):
             sel = idx == k
             if sel.any():
                 out[sel] = leaf.project(p[sel])
-        miss = np.abs(self.sdf(out)) >= on
-        if miss.any():
-            out[miss] = self._project_search(p[miss])
+        check = np.ones(len(p), dtype=bool)
+        if self.exact_distance:
+            check = margin <= 2.0 * np.abs(d) + on
+        if check.any():
+            sub = np.flatnonzero(check)
+            miss = sub[np.abs(self.sdf(out[sub])) >= on]
+            if len(miss):
+                out[miss] = self._project_search(p[miss])
         return out
 
     def _project_search(self, p: FloatArray) -> FloatArray:
-        """Nearest on-boundary candidate among all leaves' projections, else Newton."""
+        """Nearest on-boundary candidate among all leaves' projections and the corners (the
+        foot of a point beyond a convex corner), else Newton."""
         on = tol.ON_BOUNDARY * self.diameter
         best = Domain.project(self, p)  # generic Newton, the fallback
         best_dist = np.where(np.abs(self.sdf(best)) < on, np.hypot(*(best - p).T), np.inf)
@@ -78,9 +98,21 @@ class _Combination(Domain):
             better = dist < best_dist
             best[better] = c[better]
             best_dist[better] = dist[better]
+        corners = self.corners()
+        if len(corners):
+            gap = np.hypot(*(p[:, None, :] - corners[None, :, :]).transpose(2, 0, 1))
+            k = np.argmin(gap, axis=1)
+            dist = gap[np.arange(len(p)), k]
+            better = dist < best_dist
+            best[better] = corners[k[better]]
         return best
 
     def corners(self) -> FloatArray:
+        if self._corners is None:
+            self._corners = self._find_corners()
+        return self._corners.copy()
+
+    def _find_corners(self) -> FloatArray:
         leaves = self.leaves()
         cands = [leaf.corners() for leaf in leaves]
         for i in range(len(leaves)):
@@ -138,9 +170,18 @@ class Difference(_Combination):
     def _combine(self, da: FloatArray, db: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
         return np.maximum(da, -db), da >= -db
 
+    def _values(self, da: FloatArray, db: FloatArray) -> tuple[FloatArray, FloatArray]:
+        return da, -db
+
     @property
     def bbox(self) -> BBox:
         return self.a.bbox
+
+
+def _active_of(domain: Domain, p: FloatArray) -> tuple[FloatArray, IntArray, FloatArray]:
+    if isinstance(domain, _Combination):
+        return domain._active(p)
+    return domain.sdf(p), np.zeros(len(p), dtype=np.intp), np.full(len(p), np.inf)
 
 
 def _dedupe(p: FloatArray, eps: float) -> FloatArray:

@@ -21,6 +21,8 @@ class Circle(Domain):
     array([-1.,  1.])
     """
 
+    exact_distance = True
+
     def __init__(self, center: Sequence[float], r: float) -> None:
         c = np.asarray(center, dtype=float).reshape(-1)
         if c.shape != (2,) or not np.all(np.isfinite(c)):
@@ -77,6 +79,8 @@ class Polygon(Domain):
     >>> float(tri.sdf([[0.25, 0.25]])[0])
     -0.25
     """
+
+    exact_distance = True
 
     def __init__(self, vertices: ArrayLike) -> None:
         v = np.asarray(vertices, dtype=float)
