@@ -61,7 +61,7 @@ def generate(
     fixed_points : (k, 2) array_like, optional
         Points that become mesh nodes and never move.  On the boundary they act as corners.
     max_iterations : int, optional
-        Cap on smoothing iterations (default 500 for injection, 10000 for DistMesh).  Reaching it
+        Cap on smoothing iterations (default 1000 for injection, 10000 for DistMesh).  Reaching it
         emits a :class:`ConvergenceWarning` and returns a mesh with ``converged=False``.
     max_nodes : int
         Refuse (:class:`NodeBudgetError`) a mesh that would need more nodes than this.

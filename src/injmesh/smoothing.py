@@ -38,7 +38,8 @@ Other choices the paper leaves open:
   with the total force alone, which lets the interior squeeze boundary edges to 0.7 h); they
   take the step, are projected back (Eq. 3.2), and the step is refused if it is not shorter
   than half the distance to either boundary neighbour (Algorithm 3's barriers), so they keep
-  their order and cannot cross a corner.  An interior node whose step would leave the
+  their order and cannot cross a corner, or if it would close a gap to a neighbour below
+  h/2 (at a sharp corner the interior would otherwise push them into the tip).  An interior node whose step would leave the
   domain keeps its place for that step.
 * **Re-triangulation.**  When some node has moved more than ``RETRIANGULATE * hbar`` since the
   last triangulation (DistMesh's ``ttol``), and once at the end, so the result is Delaunay.
@@ -85,7 +86,7 @@ RETRIANGULATE = 0.1
 #: Converged when no node moves more than this fraction of its hbar in a step.
 DPTOL = 1e-3
 #: Default iteration cap (all phases together).
-MAX_ITERATIONS = 500
+MAX_ITERATIONS = 1000
 #: Triangles below this quality are repaired; at most REPAIR_ROUNDS rounds.
 REPAIR_Q = 0.85
 REPAIR_ROUNDS = 6
@@ -213,6 +214,10 @@ class _Relaxation:
                 # neighbour can neither overtake it nor jump across a corner to another curve.
                 gap = np.minimum(np.hypot(*(old - p[bp]).T), np.hypot(*(old - p[bn]).T))
                 ok = np.hypot(*(cand - old).T) < 0.5 * gap
+                # Nor may a step close a gap below half of h: at a sharp corner the interior
+                # pushes boundary nodes into the tip, where they would crowd without end.
+                new_gap = np.minimum(np.hypot(*(cand - p[bp]).T), np.hypot(*(cand - p[bn]).T))
+                ok &= new_gap >= np.minimum(gap, 0.5 * hbar[b])
                 p[b[ok]] = cand[ok]
                 worst = max(worst, float(np.max(np.hypot(*(p[b] - old).T) / hbar[b])))
             report(self.callback, "smoothing", self.iterations, self.cap, nodes=n, max_move=worst,
