@@ -90,3 +90,51 @@ def test_random_star_polygon_with_graded_size(
     assert_valid_mesh(mesh, poly)
     assert math.isclose(mesh.areas().sum(), _polygon_area(vertices), rel_tol=1e-2)
     assert mesh.size_report().relative < 0.2
+
+
+def _cone(cx: float, cy: float, base: float, slope: float):
+    return lambda p: base + slope * np.hypot(p[:, 0] - cx, p[:, 1] - cy)
+
+
+def _random_graded_cases(count: int, seed: int):
+    """Random star polygons (angles free: corners down to a few degrees), a third of them with
+    a small hole, and steep graded sizes (slope up to 0.4): the regime where features approach
+    the element size."""
+    rng = np.random.default_rng(seed)
+    out = []
+    while len(out) < count:
+        n = int(rng.integers(3, 14))
+        ang = np.sort(rng.uniform(0, 2 * np.pi, n))
+        if np.max(np.diff(np.r_[ang, ang[0] + 2 * np.pi])) > 0.9 * np.pi:
+            continue
+        r = rng.uniform(0.4, 1.0, n)
+        poly = Polygon(np.stack([r * np.cos(ang), r * np.sin(ang)], axis=1))
+        domain = poly - injmesh.Circle((0, 0), rng.uniform(0.05, 0.2)) if len(out) % 3 == 0 else poly
+        cx, cy = rng.uniform(-0.5, 0.5, 2)
+        base, slope = rng.uniform(0.02, 0.08), rng.uniform(0, 0.4)
+        out.append((domain, _cone(cx, cy, base, slope)))
+    return out
+
+
+def test_random_graded_domains_never_fail_silently() -> None:
+    """Every mesh is valid and conforming; anything short of that is reported as a warning
+    (a feature left out, non-convergence, a lost segment), never returned silently."""
+    import warnings
+
+    from injmesh.quality import signed_areas
+
+    silent = 0
+    for domain, h in _random_graded_cases(30, seed=7):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            mesh = injmesh.generate(domain, h)
+        assert np.all(signed_areas(mesh.points, mesh.triangles) > 0)
+        conforming = bool(np.all(mesh.boundary_tags >= 0))
+        if not caught:
+            silent += not conforming
+            # Conforming: the mesh covers exactly the region its boundary edges enclose.
+            e = mesh.boundary_edges
+            a, b = mesh.points[e[:, 0]], mesh.points[e[:, 1]]
+            enclosed = 0.5 * np.sum(a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1])
+            assert math.isclose(mesh.areas().sum(), enclosed, rel_tol=1e-9)
+    assert silent == 0
