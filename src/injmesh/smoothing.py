@@ -39,8 +39,8 @@ Other choices the paper leaves open:
   take the step, are projected back (Eq. 3.2), and the step is refused if it is not shorter
   than half the distance to either boundary neighbour (Algorithm 3's barriers), so they keep
   their order and cannot cross a corner, or if it would close a gap to a neighbour below
-  h/2 (at a sharp corner the interior would otherwise push them into the tip).  An interior node whose step would leave the
-  domain keeps its place for that step.
+  h/2 (at a sharp corner the interior would otherwise push them into the tip).  An interior
+  node whose step would leave the domain keeps its place for that step.
 * **Re-triangulation.**  When some node has moved more than ``RETRIANGULATE * hbar`` since the
   last triangulation (DistMesh's ``ttol``), and once at the end, so the result is Delaunay.
   Qhull runs only at the start and after repair changed the nodes; otherwise the mesh is made
