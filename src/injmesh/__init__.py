@@ -20,7 +20,7 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .errors import ConvergenceWarning, NodeBudgetError
+from .errors import ConvergenceWarning, MeshError, NodeBudgetError
 from .geometry import (
     Circle,
     Difference,
@@ -69,6 +69,7 @@ __all__ = [
     "Implicit",
     "Intersection",
     "Mesh",
+    "MeshError",
     "MeshStats",
     "NodeBudgetError",
     "Polygon",

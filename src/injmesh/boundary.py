@@ -19,7 +19,9 @@ Every boundary curve (outer boundary and each hole) is partitioned into segments
    ``BALANCE_ITERATIONS`` sweeps.
 
 Loops come out with the domain on their left (outer boundary counter-clockwise, holes
-clockwise), largest enclosed area first; that order is the boundary tag.
+clockwise), in a stable order that is the boundary tag: outer boundaries by decreasing area, each
+followed by its own holes by decreasing area (ties broken by position), whatever order the
+geometry lists them in.
 """
 
 from __future__ import annotations
@@ -118,8 +120,7 @@ def mesh_boundary(
     loops = domain.boundary_loops(grid_spacing(domain.bbox, h_min))
     if not loops:
         raise GeometryError("the domain has no boundary inside its bounding box")
-    loops.sort(key=lambda lp: -abs(_area(lp)))
-    loops = _drop_tiny(loops, h)
+    loops = _drop_tiny(order_loops(loops), h)
 
     corners = domain.corners()
     if len(fixed_points):
@@ -196,6 +197,48 @@ def _split_encroached(
         fixed = np.concatenate([fixed, np.zeros(len(new), dtype=bool)])[order]
         node_loop = np.concatenate([node_loop, node_loop[split]])[order]
     return p, fixed, node_loop
+
+
+def order_loops(loops: list[FloatArray]) -> list[FloatArray]:
+    """Outer boundaries by decreasing area, each followed by its holes by decreasing area.
+
+    A hole (clockwise, negative area) belongs to the smallest outer boundary that contains its
+    first vertex.  Equal areas are ordered by the loops' lowest-leftmost vertex, so the order,
+    hence the boundary tags, depends on the shape only.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> sq = lambda x, y, s: np.array([[x, y], [x + s, y], [x + s, y + s], [x, y + s]], float)
+    >>> out = order_loops([sq(1, 1, 1)[::-1], sq(10, 0, 2), sq(0, 0, 4)])
+    >>> [round(_area(lp), 1) for lp in out]
+    [16.0, -1.0, 4.0]
+    """
+    area = np.array([_area(lp) for lp in loops])
+    lowest = [tuple(lp[np.lexsort((lp[:, 1], lp[:, 0]))[0]].tolist()) for lp in loops]
+    outer = sorted(np.flatnonzero(area > 0).tolist(), key=lambda k: (-area[k], lowest[k]))
+    holes = sorted(np.flatnonzero(area <= 0).tolist(), key=lambda k: (area[k], lowest[k]))
+    owner: dict[int, list[int]] = {k: [] for k in outer}
+    orphans = []
+    for k in holes:
+        probe = loops[k][:1]
+        inside = [j for j in outer if _contains(loops[j], probe)]
+        if inside:
+            owner[min(inside, key=lambda j: area[j])].append(k)
+        else:
+            orphans.append(k)
+    order = [j for k in outer for j in [k, *owner[k]]] + orphans
+    return [loops[k] for k in order]
+
+
+def _contains(loop: FloatArray, q: FloatArray) -> bool:
+    """Even-odd test of the single point ``q (1, 2)`` against a closed polyline."""
+    a, b = loop, np.roll(loop, -1, axis=0)
+    y, x = float(q[0, 1]), float(q[0, 0])
+    crosses = (a[:, 1] > y) != (b[:, 1] > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xint = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
+    return bool(np.count_nonzero(crosses & (x < xint)) % 2)
 
 
 def _area(loop: FloatArray) -> float:
