@@ -157,7 +157,9 @@ def _drop_tiny(loops: list[FloatArray], h: SizeFn) -> list[FloatArray]:
     keep = []
     for k, loop in enumerate(loops):
         closed = np.concatenate([loop, loop[:1]])
-        hlen = float(np.sum(np.hypot(*np.diff(closed, axis=0).T) / h(0.5 * (closed[1:] + closed[:-1]))))
+        # h at the vertices, which are on the boundary (h is never asked outside the domain).
+        hv = h(closed)
+        hlen = float(np.sum(np.hypot(*np.diff(closed, axis=0).T) / (0.5 * (hv[1:] + hv[:-1]))))
         if hlen >= tol.TINY_LOOP or k == 0:
             keep.append(loop)
         else:
@@ -335,7 +337,11 @@ def _select(
     seglen = np.hypot(*np.diff(closed, axis=0).T)
     arc = np.concatenate([[0.0], np.cumsum(seglen)])
     total = float(arc[-1])
-    ds = seglen / h(0.5 * (closed[1:] + closed[:-1]))
+    # h at the vertices of the refined curve (on the boundary; chord midpoints of a concave
+    # curve are outside the domain, where h may mean nothing), linear along each segment.
+    hv = np.concatenate([h(p), [0.0]])
+    hv[-1] = hv[0]
+    ds = seglen / (0.5 * (hv[1:] + hv[:-1]))
     s = np.concatenate([[0.0], np.cumsum(ds)])
     fixed_idx = np.r_[np.flatnonzero(fixed), len(p)]  # fixed[0] is True; len(p) closes the loop
     s_start = s[fixed_idx[:-1]]
@@ -347,7 +353,7 @@ def _select(
     k = np.arange(len(piece)) - np.repeat(np.cumsum(count) - count, count)
     t = np.interp(s_start[piece] + k * span[piece] / count[piece], s, arc)
     t[k == 0] = arc[fixed_idx[:-1]]
-    t = _balance(h, t, k == 0, arc, closed, total)
+    t = _balance(hv, t, k == 0, arc, total)
     out = np.stack([np.interp(t, arc, closed[:, 0]), np.interp(t, arc, closed[:, 1])], axis=1)
     new_fixed = k == 0
     out[new_fixed] = p[fixed_idx[:-1]]
@@ -358,15 +364,15 @@ def _select(
 
 
 def _balance(
-    h: SizeFn,
+    hv: FloatArray,
     t: FloatArray,
     fixed: NDArray[np.bool_],
     arc: FloatArray,
-    closed: FloatArray,
     total: float,
 ) -> FloatArray:
     """Algorithm 3 on arc length: each free node goes to the h-weighted mean (Eq. 3.3) of the
-    midpoints of its two segments, until no node moves ``BALANCE_TOL * h``."""
+    midpoints of its two segments, until no node moves ``BALANCE_TOL * h``.  ``hv`` is h at the
+    refined curve's vertices (arc lengths ``arc``), interpolated linearly between them."""
     free = ~fixed
     if not free.any():
         return t
@@ -376,7 +382,7 @@ def _balance(
         nxt[-1] += total  # the segment from the last node back to the first
         mid = 0.5 * (t + nxt)  # midpoint of the segment after each node
         at = np.mod(mid, total)
-        w = 1.0 / h(np.stack([np.interp(at, arc, closed[:, 0]), np.interp(at, arc, closed[:, 1])], 1))
+        w = 1.0 / np.interp(at, arc, hv)
         before, w_before = np.roll(mid, 1), np.roll(w, 1)
         before[0] -= total
         new = (before * w_before + mid * w) / (w_before + w)  # Eq. 3.3
