@@ -186,6 +186,7 @@ def _place_nodes(
     seconds: dict[str, float] | None = None,
 ) -> tuple[BoundaryMesh, FloatArray, FloatArray]:
     """Steps 1 and 2: boundary nodes, seeds (boundary + fixed interior) and injected nodes."""
+    h = _capped(h, domain.diameter)
     t = time.perf_counter()
     # Step 1: meshing of the boundary (Eq. 3.1-3.3, Algorithms 2 and 3).
     bnd = mesh_boundary(domain, h, fixed, max_nodes=max_nodes, callback=callback)
@@ -225,8 +226,8 @@ def _injection(
     prev[bnd.edges[:, 1]] = bnd.edges[:, 0]
     sliding = np.stack([free_b, prev[free_b], bnd.edges[free_b, 1]], axis=1)
     result = smooth(
-        domain, h, points, n_fixed=len(seeds), sliding=sliding, walls=bnd.edges, smoothing=smoothing,
-        max_iterations=max_iterations, callback=callback,
+        domain, _capped(h, domain.diameter), points, n_fixed=len(seeds), sliding=sliding,
+        walls=bnd.edges, smoothing=smoothing, max_iterations=max_iterations, callback=callback,
     )
     seconds["smoothing"] = time.perf_counter() - t
     # The mesh's boundary edges are Step 1's segments (some split by recovery), tagged with the
@@ -272,3 +273,13 @@ def _nearest_tags(points: FloatArray, edges: NDArray[np.intp], walls: NDArray[np
     mid = 0.5 * (points[walls[ok, 0]] + points[walls[ok, 1]])
     _, k = cKDTree(mid).query(0.5 * (points[edges[:, 0]] + points[edges[:, 1]]))
     return np.asarray(wall_tags[ok][k], dtype=np.intp)
+
+
+def _capped(h: Callable[[FloatArray], FloatArray], cap: float) -> Callable[[FloatArray], FloatArray]:
+    """h limited to ``cap`` (the domain's diameter): a larger size asks for nothing coarser than
+    the fewest nodes the boundary needs, and keeps every length the stages compute finite."""
+
+    def capped(p: FloatArray) -> FloatArray:
+        return np.minimum(h(p), cap)
+
+    return capped
