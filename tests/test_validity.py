@@ -241,3 +241,23 @@ def test_converged_agrees_with_the_iteration_cap():
             assert mesh.stats.iterations <= cap
             if mesh.stats.iterations >= cap:
                 assert not mesh.converged
+
+
+def _best_q(degrees: float) -> float:
+    """The best q a triangle in a corner of this angle can have (isosceles)."""
+    a = np.radians(degrees)
+    return float(8 * np.sin(a / 2) * np.sin((np.pi - a) / 4) ** 2)
+
+
+@pytest.mark.parametrize("degrees", [5.0, 10.0, 20.0])
+def test_sharp_corner_gets_the_best_triangle_its_angle_allows(degrees):
+    t = np.radians(degrees / 2)
+    kite = Polygon([(0, 0), (np.cos(t), -np.sin(t)), (1.3, 0), (np.cos(t), np.sin(t))])
+    mesh = injmesh.generate(kite, 0.05)
+    assert_valid_mesh(mesh, kite)
+    q = mesh.quality()
+    tip = np.any(np.hypot(*mesh.points[mesh.triangles].transpose(2, 0, 1)) == 0, axis=1)
+    assert tip.sum() == 1
+    assert q[tip][0] == pytest.approx(_best_q(degrees), rel=0.02)
+    # The strip next to the tip is the next worst: within 15 % of the tip here.
+    assert q.min() >= 0.85 * _best_q(degrees)

@@ -186,8 +186,49 @@ def mesh_boundary(
             f"({len(points)} on the boundary), more than max_nodes={max_nodes}"
         )
     nxt = _next(node_loop)
+    fixed_mask = _pin_wedges(h, points, fixed_mask, nxt)
     edges = np.stack([np.arange(len(points)), nxt], axis=1)
     return BoundaryMesh(points, edges, node_loop, fixed_mask)
+
+
+def _pin_wedges(h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_], nxt: IntArray) -> NDArray[np.bool_]:
+    """Hold still the boundary nodes of a sharp corner's two walls where the walls are closer
+    than ``PIN_WIDTH * h``.
+
+    Step 1 lays the nodes of both walls at the same h-lengths from the corner, so the triangle
+    at the tip is isosceles (the best an angle allows) and the strip of triangles between the
+    walls is made of isosceles trapezoids.  Sliding would let the interior push them out of
+    step (a 20-degree tip measured q = 0.41 where 0.57 is possible).
+    """
+    prev = np.empty_like(nxt)
+    prev[nxt] = np.arange(len(nxt))
+    u, w = p[prev] - p, p[nxt] - p
+    # Interior angle at each node: from the next wall counter-clockwise to the previous one
+    # (the domain is on the left of the loop).
+    angle = np.arctan2(w[:, 0] * u[:, 1] - w[:, 1] * u[:, 0], np.einsum("ij,ij->i", w, u)) % (2 * np.pi)
+    sharp = np.flatnonzero(fixed & (angle < np.radians(SHARP_CORNER)))
+    out = fixed.copy()
+    if len(sharp) == 0:
+        return out
+    for c in sharp.tolist():
+        sin_a = np.sin(angle[c])
+        for step in (nxt, prev):
+            k = int(step[c])
+            for _ in range(len(p)):
+                if out[k] and k != c:
+                    break
+                r = float(np.hypot(*(p[k] - p[c])))
+                if r * sin_a >= PIN_WIDTH * float(h(p[k : k + 1])[0]):
+                    break
+                out[k] = True
+                k = int(step[k])
+    return out
+
+
+#: Corners with an interior angle below this (degrees) are sharp: see :func:`_pin_wedges`.
+SHARP_CORNER = 25.0
+#: Nodes of a sharp corner's walls are held still where the walls are closer than this times h.
+PIN_WIDTH = 0.8
 
 
 def _drop_tiny(loops: list[FloatArray], h: SizeFn) -> list[FloatArray]:
