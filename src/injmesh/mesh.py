@@ -51,6 +51,8 @@ class MeshStats:
         mesh made with ``generate(..., strict=False)`` can be invalid.
     defects : tuple of Defect
         What failed those checks, and where.
+    unsettled : (x, y) or None
+        Where smoothing was still moving most when it stopped (useful when not converged).
     """
 
     method: str = "injection"
@@ -62,6 +64,7 @@ class MeshStats:
     seconds: dict[str, float] = field(default_factory=dict)
     valid: bool = True
     defects: tuple[Defect, ...] = ()
+    unsettled: tuple[float, float] | None = None
 
     @property
     def total_seconds(self) -> float:
@@ -83,8 +86,9 @@ class Mesh:
         Boundary edges, oriented with the domain on their left (outer boundary counter-clockwise,
         holes clockwise).
     boundary_tags : (k,) int array
-        Boundary component of each boundary edge: 0 for the outer boundary of the largest
-        component, then one number per further loop (holes, other components).
+        Boundary loop of each boundary edge, numbered in a stable order that depends on the
+        shape only: outer boundaries by decreasing area, each followed by its own holes by
+        decreasing area (0 is the outer boundary of the largest component).  Never negative.
     size : callable or None
         The size function h the mesh was made for, used by :meth:`size_report`.
     stats : MeshStats

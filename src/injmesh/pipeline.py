@@ -131,8 +131,10 @@ def generate(
     else:
         raise ValueError(f"method must be 'injection' or 'distmesh', got {method!r}")
     if not mesh.stats.converged:
+        where = mesh.stats.unsettled
+        at = f" (still moving most at ({where[0]:.6g}, {where[1]:.6g}))" if where else ""
         warnings.warn(
-            f"{method} smoothing did not converge in {mesh.stats.iterations} iterations; "
+            f"{method} smoothing did not converge in {mesh.stats.iterations} iterations{at}; "
             "the mesh is returned with converged=False",
             ConvergenceWarning,
             stacklevel=2,
@@ -251,6 +253,7 @@ def _injection(
         seconds=seconds,
         valid=not defects,
         defects=tuple(defects),
+        unsettled=result.unsettled,
     )
     return Mesh(
         points=result.points,

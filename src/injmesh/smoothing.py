@@ -124,6 +124,7 @@ class SmoothResult:
     retriangulations: int
     walls: IntArray
     wall_origin: IntArray
+    unsettled: tuple[float, float] | None = None
 
 
 def triangulate(domain: Domain, p: FloatArray, walls: IntArray | None = None) -> IntArray:
@@ -151,6 +152,9 @@ class _Relaxation:
         self.callback, self.cap = callback, cap
         self.iterations = 0
         self.retriangulations = 0
+        #: Where the largest move of the last step was: where a run that stops at its cap is
+        #: still moving.
+        self.unsettled: tuple[float, float] | None = None
         self.tri = triangulate(domain, p, walls)
         self._connect()
 
@@ -209,8 +213,8 @@ class _Relaxation:
             escaped = self.domain.sdf(new) > 0
             new[escaped] = p[free][escaped]
             p[free] = new
-            move = np.hypot(*(step[~escaped]).T) / hbar[free][~escaped]
-            worst = float(move.max()) if len(move) else 0.0
+            moved = np.zeros(n)
+            moved[free[~escaped]] = np.hypot(*(step[~escaped]).T) / hbar[free][~escaped]
             if len(self.slide):
                 b, bp, bn = self.slide.T
                 old = p[b]
@@ -238,7 +242,10 @@ class _Relaxation:
                 new_gap = np.minimum(np.hypot(*(cand - p[bp]).T), np.hypot(*(cand - p[bn]).T))
                 ok &= new_gap >= np.minimum(gap, 0.5 * hbar[b])
                 p[b[ok]] = cand[ok]
-                worst = max(worst, float(np.max(np.hypot(*(p[b] - old).T) / hbar[b])))
+                moved[b] = np.hypot(*(p[b] - old).T) / hbar[b]
+            at = int(np.argmax(moved))
+            worst = float(moved[at])
+            self.unsettled = (float(p[at, 0]), float(p[at, 1]))
             report(self.callback, "smoothing", self.iterations, self.cap, nodes=n, max_move=worst,
                    force=force)
             if worst < DPTOL:
@@ -334,7 +341,7 @@ def smooth(
     # the mesh's own check reports it.
     out_walls = np.where(used[wall], remap[wall], -1)
     return SmoothResult(p[used], remap[tri], kept[used], iterations, bool(converged), triangulations,
-                        out_walls, origin)
+                        out_walls, origin, relax.unsettled)
 
 
 def _repair(
