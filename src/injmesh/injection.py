@@ -117,7 +117,7 @@ def inject_nodes(
     front = Front(boundary.points, counts, np.ones(len(counts), dtype=bool))
     placed = [existing]
     n_placed = len(existing)
-    tree = cKDTree(existing)
+    index = _NodeIndex(existing)
     walls = _Walls(boundary)
     h_min = float(h(boundary.points).min())
     max_layers = int(domain.diameter / (HEIGHT * h_min)) + 10
@@ -125,7 +125,7 @@ def inject_nodes(
     for layer in range(1, max_layers + 1):
         cand = _inject(front, domain, h)
         cand = _respace(cand, domain, h)
-        keep = _admissible(domain, h, cand.points, tree, walls)
+        keep = _admissible(domain, h, cand.points, index, walls)
         if not keep.any():
             break
         front = _survivors(cand, keep)
@@ -133,8 +133,8 @@ def inject_nodes(
         n_placed += len(front.points)
         if n_placed > max_nodes:
             raise NodeBudgetError(f"node injection passed max_nodes={max_nodes} (layer {layer})")
-        # The tree must see every node placed so far: fronts from far away meet here later.
-        tree = cKDTree(np.concatenate(placed))
+        # The index must see every node placed so far: fronts from far away meet here later.
+        index.add(front.points)
         report(callback, "injection", layer, max_layers, nodes=n_placed, front=len(front))
         front = _drop_isolated(front)
         if len(front) == 0:
@@ -274,7 +274,42 @@ class _Walls:
         return out
 
 
-def _admissible(domain: Domain, h: SizeFn, q: FloatArray, tree: cKDTree, walls: _Walls) -> BoolArray:
+class _NodeIndex:
+    """Every node placed so far, for nearest-node queries.
+
+    A k-d tree rebuilt over all nodes after every layer costs O(n) per layer, O(n^1.5) in all.
+    Here the nodes live in a few trees of geometrically growing sizes (a log-structured merge):
+    a new layer becomes a tree of its own and is merged with the smaller trees at the end, so a
+    node is rebuilt into a tree O(log n) times; a query asks each of the O(log n) trees.
+    """
+
+    def __init__(self, points: FloatArray) -> None:
+        self.parts: list[FloatArray] = []
+        self.trees: list[cKDTree] = []
+        self.add(points)
+
+    def add(self, points: FloatArray) -> None:
+        pts = points
+        while self.parts and len(self.parts[-1]) <= 2 * len(pts):
+            pts = np.concatenate([self.parts.pop(), pts])
+            self.trees.pop()
+        if len(pts):
+            self.parts.append(pts)
+            self.trees.append(cKDTree(pts))
+
+    def nearest(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Distance to the nearest node and that node, for each of ``q``."""
+        best = np.full(len(q), np.inf)
+        near = np.zeros_like(q)
+        for pts, tree in zip(self.parts, self.trees, strict=True):
+            d, i = tree.query(q, k=1)
+            closer = d < best
+            best[closer] = d[closer]
+            near[closer] = pts[i[closer]]
+        return best, near
+
+
+def _admissible(domain: Domain, h: SizeFn, q: FloatArray, index: _NodeIndex, walls: _Walls) -> BoolArray:
     """Points inside, clear of the boundary, of existing nodes and of lower-numbered new points."""
     if len(q) == 0:
         return np.zeros(0, dtype=bool)
@@ -282,9 +317,9 @@ def _admissible(domain: Domain, h: SizeFn, q: FloatArray, tree: cKDTree, walls: 
     hq = np.ones(len(q))
     hq[keep] = h(q[keep])
     keep &= walls.distance(q) >= CLEARANCE * hq
-    dist, nn = tree.query(q, k=1)
+    dist, nearest = index.nearest(q)
     # Symmetric in the two nodes' h, so a fine front and a coarse one judge each other alike.
-    keep &= dist >= MERGE * 0.5 * (hq + h(tree.data[nn]))
+    keep &= dist >= MERGE * 0.5 * (hq + h(nearest))
     idx = np.flatnonzero(keep)
     if len(idx) > 1:
         pairs = cKDTree(q[idx]).query_pairs(MERGE * float(hq[idx].max()), output_type="ndarray")
