@@ -139,6 +139,8 @@ def inject_nodes(
         front = _drop_isolated(front)
         if len(front) == 0:
             break
+    # The layer count is not known in advance: close the progress at 100 %.
+    report(callback, "injection", max_layers, max_layers, nodes=n_placed, front=0)
     return np.concatenate(placed[1:]) if len(placed) > 1 else np.empty((0, 2))
 
 
