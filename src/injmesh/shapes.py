@@ -870,7 +870,6 @@ def coastline(
         main = _normalise(_fractal_ring(rng, n_vertices, roughness, 1.0), 1.8)[0]
         islands: list[FloatArray] = []
         widths: list[float] = []
-        a = main
         for _ in range(20 * n_islands):
             if len(islands) == n_islands:
                 break
@@ -884,12 +883,12 @@ def coastline(
             anchor = 0.5 * (p + q)
             c = anchor + out * (r + target)
             for _ in range(8):  # slide the island along ``out`` until the strait is ``target``
-                gap = _signed_gap(isl + c, a)
+                gap = _signed_gap(isl + c, main)
                 if abs(gap - target) < 1e-3 * target:
                     break
                 c = c - out * (gap - target)
             cand = isl + c
-            gap = _signed_gap(cand, a)
+            gap = _signed_gap(cand, main)
             if not (0.5 * fraction[0] * strait <= gap < strait):
                 continue
             if islands and _distance_to_rings(cand, islands).min() < strait:
