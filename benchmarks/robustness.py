@@ -31,7 +31,8 @@ and replaced on timeout) and is classified:
 - **timeout**: no answer within ``--timeout`` seconds.
 
 The checks are this script's own (a second opinion, with shapely/GEOS for the geometry, not
-injmesh's code): no duplicate node (closer than 1e-10 diameter) or unused node; no zero-area or
+injmesh's code): no duplicate node (closer than 1e-6 diameter, the
+on-boundary tolerance: 1e-7 twins must be merged) or unused node; no zero-area or
 inverted triangle; no edge shared by more than two triangles; every triangle centroid strictly
 inside the domain; every node of a boundary edge (edge of one triangle) within 1e-6 diameter of
 the domain boundary; mesh area = domain area and boundary length = perimeter (relative 1e-3;
@@ -78,7 +79,7 @@ import numpy as np
 MIX = (("star", 0.25), ("walk", 0.25), ("sharp", 0.20), ("neck", 0.15), ("duplicates", 0.15))
 STATUSES = ("valid", "invalid", "refused", "crashed", "timeout")
 ON_BOUNDARY = 1e-6  # of the diameter
-DUPLICATE = 1e-10  # of the diameter
+DUPLICATE = 1e-6  # of the diameter: nodes closer than the on-boundary tolerance are one point
 CORNER_TURN = 20.0  # degrees
 
 
