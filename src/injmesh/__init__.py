@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .errors import ConvergenceWarning, NodeBudgetError
+from .expression import size_expression
 from .geometry import (
     Circle,
     Difference,
@@ -80,4 +81,5 @@ __all__ = [
     "generate",
     "plot_mesh",
     "read",
+    "size_expression",
 ]
