@@ -1,6 +1,6 @@
 # The two entry points a newcomer needs: `make demo` and `make test`.
 #   make demo          the quick reproduction of the paper (about a minute after installation)
-#   make demo FULL=1   the full reproduction (adds DistMesh at h0 = 0.003: several minutes more)
+#   make demo FULL=1   the full reproduction (all DistMesh runs, six repeats: several minutes more)
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin

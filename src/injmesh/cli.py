@@ -365,8 +365,9 @@ def build_parser() -> argparse.ArgumentParser:
     paper.add_argument("--out", default="paper-results", metavar="DIR",
                        help="output directory (default: paper-results)")
     paper.add_argument("--quick", action="store_true",
-                       help="leave out the slowest DistMesh runs (h0 = 0.003): about a minute "
-                       "instead of several")
+                       help="leave out the slowest DistMesh runs (h0 = 0.003 and 0.0086) and "
+                       "repeat Tables 2-3 three times instead of six: about a minute instead "
+                       "of several")
     paper.add_argument("--progress", action="store_true",
                        help="draw progress bars on stderr even when it is not a terminal (by "
                        "default: bars on a terminal, one line per run otherwise; -q: none)")

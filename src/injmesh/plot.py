@@ -242,9 +242,12 @@ def plot_quality_histogram(
         edges = np.asarray(bins, dtype=float).reshape(-1)
     ax.hist(q, bins=edges.tolist(), color=color, edgecolor="white")
     ax.axvline(q_min, color="tab:red", linestyle="--", linewidth=1)
+    # The label goes on the side of the line with room for it (q_min is often close to 1).
+    right_half = q_min > 0.5 * (edges[0] + edges[-1])
     ax.annotate(
         f"$q_{{min}}$ = {q_min:.4f}", xy=(q_min, 1), xycoords=("data", "axes fraction"),
-        xytext=(4, -14), textcoords="offset points", color="tab:red",
+        xytext=(-4 if right_half else 4, -14), textcoords="offset points", color="tab:red",
+        ha="right" if right_half else "left",
     )
     ax.set_xlim(edges[0], edges[-1])
     ax.set_xlabel("element quality q")
