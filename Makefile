@@ -13,7 +13,9 @@ PAPER_FLAGS := $(if $(FULL),,--quick)
 $(BIN)/python:
 	@echo "make: creating $(VENV) with $(PYTHON)"
 	$(PYTHON) -m venv $(VENV)
-	$(PIP) install --quiet --upgrade pip
+	@# Editable installs from pyproject.toml need pip >= 21.3; upgrade only an older one.
+	@$(BIN)/python -c "import pip, sys; sys.exit(tuple(map(int, pip.__version__.split('.')[:2])) < (21, 3))" \
+		|| $(PIP) install --quiet --upgrade pip
 
 # The demo needs the runtime extras only (plots and mesh files), not the test toolchain.
 $(VENV)/.runtime: pyproject.toml | $(BIN)/python

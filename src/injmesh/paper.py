@@ -709,9 +709,13 @@ def _report(
 
     # Figures.
     out.append("## Figures\n")
-    if figures:
-        listed = (f"- Figure {k[3:].lstrip('0')}: [{v}]({v})" for k, v in sorted(figures.items()))
-        out.append("\n".join(listed) + "\n")
+    expected = [1, 2, 3] + [4 + 2 * TABLE_CASES.index(c) + k for c in plan.cases for k in (0, 1)]
+    listed = []
+    for number in sorted(expected):
+        name = figures.get(f"fig{number:02d}")
+        listed.append(f"- Figure {number}: [{name}]({name})" if name else
+                      f"- Figure {number}: not drawn (its run was skipped or failed)")
+    out.append("\n".join(listed) + "\n")
 
     failed = [r for r in results.values() if r.error is not None]
     if failed:
@@ -885,6 +889,8 @@ def _verdicts(
     Beside each verdict is the same count made on the paper's own printed Tables 5-9.
     """
     done = {k: v for k, v in pairs.items() if v[0].mesh is not None and v[1].mesh is not None}
+    missing = [k for k in pairs if k not in done]
+    scope = "of Tables 5-9" + (f" measured ({', '.join(missing)} not run)" if missing else "")
     extras = {
         "iterations": _disc_iterations(results, plan),
         "Er": _disc_er(results, plan),
@@ -898,12 +904,11 @@ def _verdicts(
         losers = [k for k in done if k not in wins]
         n = len(done)
         if not losers:
-            verdict = f"**holds** in {'all ' if n > 1 else ''}{_cases(n)} of Tables 5-9"
+            verdict = f"**holds** in {'all ' if n > 1 else ''}{_cases(n)} {scope}"
         elif wins:
-            verdict = (f"**holds in {len(wins)} of {_cases(n)}** of Tables 5-9, not for "
-                       f"{', '.join(losers)}")
+            verdict = f"**holds in {len(wins)} of {_cases(n)}** {scope}, not for {', '.join(losers)}"
         else:
-            verdict = f"**does not hold** in {'any of the ' if n > 1 else 'the '}{_cases(n)} of Tables 5-9"
+            verdict = f"**does not hold** in {'any of the ' if n > 1 else 'the '}{_cases(n)} {scope}"
         paper = [
             better(getattr(CASES[k].paper_distmesh, key), getattr(CASES[k].paper_ours, key))
             for k in done

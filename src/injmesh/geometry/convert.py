@@ -164,8 +164,8 @@ def to_domain(obj: Any) -> Domain:
     if isinstance(obj, (np.ndarray, list, tuple)):
         return _vertices(obj)
     raise TypeError(
-        "domain must be a Domain, a callable d(p), a shapely/__geo_interface__ geometry, a GeoJSON "
-        f"dict, WKT text or (n, 2) vertices; got {type(obj).__name__}"
+        "domain must be a Domain or a callable d(p), or a shapely/__geo_interface__ geometry, a "
+        f"GeoJSON dict, WKT text or (n, 2) vertices; got {type(obj).__name__}"
     )
 
 
