@@ -712,8 +712,8 @@ def _report(
     expected = [1, 2, 3] + [4 + 2 * TABLE_CASES.index(c) + k for c in plan.cases for k in (0, 1)]
     listed = []
     for number in sorted(expected):
-        name = figures.get(f"fig{number:02d}")
-        listed.append(f"- Figure {number}: [{name}]({name})" if name else
+        drawn = figures.get(f"fig{number:02d}")
+        listed.append(f"- Figure {number}: [{drawn}]({drawn})" if drawn else
                       f"- Figure {number}: not drawn (its run was skipped or failed)")
     out.append("\n".join(listed) + "\n")
 
