@@ -20,7 +20,7 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .errors import ConvergenceWarning, NodeBudgetError
+from .errors import ConvergenceWarning, MeshError, NodeBudgetError
 from .expression import size_expression
 from .geometry import (
     Circle,
@@ -70,6 +70,7 @@ __all__ = [
     "Implicit",
     "Intersection",
     "Mesh",
+    "MeshError",
     "MeshStats",
     "NodeBudgetError",
     "Polygon",

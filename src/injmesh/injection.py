@@ -23,6 +23,11 @@ built.  The front is a set of *chains*: polylines of nodes with the unmeshed reg
 
 *Stopping condition*: a layer in which no point survives (the front is exhausted), or
 ``diameter / (sqrt(3)/2 * h_min) + 10`` layers.
+
+h is asked only at points inside the domain or on its boundary: a candidate beyond the boundary
+(an apex past the opposite wall, the midpoint of a chord across a notch) takes h at its
+projection onto the boundary.  DistMesh users write h that is meaningless, even negative,
+outside the domain.
 """
 
 from __future__ import annotations
@@ -118,8 +123,8 @@ def inject_nodes(
     max_layers = int(domain.diameter / (HEIGHT * h_min)) + 10
 
     for layer in range(1, max_layers + 1):
-        cand = _inject(front, h)
-        cand = _respace(cand, h)
+        cand = _inject(front, domain, h)
+        cand = _respace(cand, domain, h)
         keep = _admissible(domain, h, cand.points, tree, walls)
         if not keep.any():
             break
@@ -137,7 +142,16 @@ def inject_nodes(
     return np.concatenate(placed[1:]) if len(placed) > 1 else np.empty((0, 2))
 
 
-def _inject(front: Front, h: SizeFn) -> Front:
+def _h_inside(domain: Domain, h: SizeFn, q: FloatArray) -> FloatArray:
+    """h at ``q``, taken at the boundary projection for points outside the domain."""
+    out = domain.sdf(q) > 0
+    if out.any():
+        q = q.copy()
+        q[out] = domain.project(q[out])
+    return h(q)
+
+
+def _inject(front: Front, domain: Domain, h: SizeFn) -> Front:
     """Apexes of the front edges plus arc points at reflex vertices, as new chains."""
     p = front.points
     nxt = front.successor()
@@ -149,10 +163,10 @@ def _inject(front: Front, h: SizeFn) -> Front:
     t = t / length[:, None]
     normal = np.stack([-t[:, 1], t[:, 0]], axis=1)  # left of the edge: the unmeshed side
     mid = 0.5 * (a + b)
-    hm = h(mid)
+    hm = _h_inside(domain, h, mid)
     apex = mid + HEIGHT * hm[:, None] * normal
     # Re-evaluate h at the apex so layers thin out or thicken with h.
-    ha = 0.5 * (hm + h(apex))
+    ha = 0.5 * (hm + _h_inside(domain, h, apex))
     apex = mid + HEIGHT * ha[:, None] * normal
 
     # Reflex vertices: a node with both an incoming and an outgoing edge.
@@ -190,7 +204,7 @@ def _inject(front: Front, h: SizeFn) -> Front:
     return Front(pts, lengths, front.closed.copy())
 
 
-def _respace(front: Front, h: SizeFn) -> Front:
+def _respace(front: Front, domain: Domain, h: SizeFn) -> Front:
     """Re-lay every chain at equal h-length, ``round(S)`` segments (Step 2 of the module doc)."""
     front = _drop_empty(front)
     if len(front) == 0:
@@ -207,7 +221,7 @@ def _respace(front: Front, h: SizeFn) -> Front:
     pchain = np.concatenate([front.chain, np.flatnonzero(close)])[order]
     same = pchain[1:] == pchain[:-1]
     seg = poly[1:] - poly[:-1]
-    ds = np.where(same, np.hypot(*seg.T) / h(0.5 * (poly[1:] + poly[:-1])), 0.0)
+    ds = np.where(same, np.hypot(*seg.T) / _h_inside(domain, h, 0.5 * (poly[1:] + poly[:-1])), 0.0)
     s = np.concatenate([[0.0], np.cumsum(ds)])
     pstart = np.flatnonzero(np.r_[True, ~same])
     pend = np.r_[pstart[1:], len(poly)] - 1
@@ -265,7 +279,8 @@ def _admissible(domain: Domain, h: SizeFn, q: FloatArray, tree: cKDTree, walls: 
     if len(q) == 0:
         return np.zeros(0, dtype=bool)
     keep = domain.sdf(q) < 0
-    hq = h(q)
+    hq = np.ones(len(q))
+    hq[keep] = h(q[keep])
     keep &= walls.distance(q) >= CLEARANCE * hq
     dist, nn = tree.query(q, k=1)
     # Symmetric in the two nodes' h, so a fine front and a coarse one judge each other alike.

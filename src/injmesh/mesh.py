@@ -22,6 +22,8 @@ from .quality import (
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
+    from .validate import Defect
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
 
@@ -44,6 +46,11 @@ class MeshStats:
         Nodes after boundary meshing (Step 1) and after node injection (Step 2).
     seconds : dict
         Wall-clock seconds per stage.
+    valid : bool
+        Whether the mesh passed every check of :func:`injmesh.validate.mesh_defects`; only a
+        mesh made with ``generate(..., strict=False)`` can be invalid.
+    defects : tuple of Defect
+        What failed those checks, and where.
     """
 
     method: str = "injection"
@@ -53,6 +60,8 @@ class MeshStats:
     boundary_nodes: int = 0
     initial_nodes: int = 0
     seconds: dict[str, float] = field(default_factory=dict)
+    valid: bool = True
+    defects: tuple[Defect, ...] = ()
 
     @property
     def total_seconds(self) -> float:
