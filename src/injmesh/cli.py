@@ -200,10 +200,13 @@ class GroupProgress:
         Where to write (stderr in the CLI).
     bar : bool
         Draw bars redrawn in place (a terminal) rather than one line per step.
-    width : int
-        Characters of each bar.
+    width : int, optional
+        Characters of each bar (default: 24, or 12 on a terminal narrower than 120 columns).
     interval : float
         Minimum seconds between redraws for events inside an item.
+
+    A bar's line is cut to the terminal's width, since a line that wraps cannot be redrawn in
+    place.
 
     Examples
     --------
@@ -217,10 +220,15 @@ class GroupProgress:
     'Table 1 1/2: distmesh unit_disc h0=0.2: N 11\\n'
     """
 
-    def __init__(self, stream: IO[str], *, bar: bool, width: int = 24, interval: float = 0.2) -> None:
+    def __init__(
+        self, stream: IO[str], *, bar: bool, width: int | None = None, interval: float = 0.2
+    ) -> None:
+        import shutil
+
         self.stream = stream
         self.bar = bar
-        self.width = width
+        self.columns = max(40, shutil.get_terminal_size((150, 24)).columns - 1)
+        self.width = width if width is not None else (24 if self.columns >= 119 else 12)
         self.interval = interval
         self._start = time.monotonic()
         self._stage: str | None = None
@@ -254,7 +262,7 @@ class GroupProgress:
             detail = "done"
         line = (f"{event.stage:<32.32} [{'#' * filled}{'.' * (self.width - filled)}] "
                 f"{event.step}/{event.total} {elapsed}  {detail}")
-        line = line[:150]
+        line = line[: self.columns]
         self.stream.write("\r" + line + " " * max(0, self._length - len(line)))
         self.stream.flush()
         self._length = len(line)
