@@ -15,11 +15,16 @@ KEYS = {"table", "case", "method", "h0", "seed", "N", "iterations", "q_min", "q_
 PNG = b"\x89PNG\r\n\x1a\n"
 
 
+EVENTS: list = []
+
+
 @pytest.fixture(scope="module")
 def small_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, str]:
     """One L-shape case, two repeated runs, every DistMesh h0 three times coarser."""
     out = tmp_path_factory.mktemp("paper") / "out"
-    report = run(out, quick=True, cases=["l_shape"], runs=2, distmesh_h0_scale=3)
+    EVENTS.clear()
+    report = run(out, quick=True, cases=["l_shape"], runs=2, distmesh_h0_scale=3,
+                 callback=EVENTS.append)
     return out, report, report.read_text()
 
 
@@ -71,14 +76,10 @@ def test_report_content(small_run):
     assert "disagree with the paper" in text
 
 
-def test_progress_events_per_table_and_figure(tmp_path, capsys):
-    events = []
-    run(tmp_path / "events", quick=True, cases=["l_shape"], runs=1, distmesh_h0_scale=4,
-        callback=events.append)
-    captured = capsys.readouterr()
-    assert captured.err == "" and captured.out == "", "the library never prints"
+def test_progress_events_per_table_and_figure(small_run, tmp_path, capsys):
+    events = EVENTS
     stages = list(dict.fromkeys(e.stage for e in events))
-    assert stages == ["Table 1", "Table 2", "Table 4", "Table 9: l_shape", "Figures"]
+    assert stages == ["Table 1", "Table 2", "Table 3", "Table 4", "Table 9: l_shape", "Figures"]
     for stage in stages:
         outer = [e for e in events if e.stage == stage and "inner" not in e.info]
         steps = [e.step for e in outer]
@@ -89,8 +90,10 @@ def test_progress_events_per_table_and_figure(tmp_path, capsys):
     inner = [e.info["inner"] for e in events if "inner" in e.info]
     assert {"distmesh", "smoothing"} <= {e.stage for e in inner}
     assert any(e.info.get("result") == "skipped (quick run)" for e in events)
-    # Nothing is printed without a callback either.
+    # The library never prints, with or without a callback.
     run(tmp_path / "quiet", quick=True, cases=[], runs=1, distmesh_h0_scale=4)
+    run(tmp_path / "events", quick=True, cases=[], runs=1, distmesh_h0_scale=4,
+        callback=lambda event: None)
     captured = capsys.readouterr()
     assert captured.err == "" and captured.out == ""
 
