@@ -13,6 +13,11 @@ algorithms through :func:`injmesh.generate` (``method="injection"``, the paper's
 CPU seconds are ``time.process_time()`` around one :func:`~injmesh.generate` call; they are not
 comparable with the paper's (MATLAB on another machine), only between the two algorithms here.
 
+Nothing is printed: progress goes to an optional ``callback`` (one group per table or case, then
+the figures), which ``injmesh paper`` draws as bars on a terminal.  Every file is written
+atomically, so an interrupted run leaves complete files only.  Panels that are compared share
+one colour scale; titles give DistMesh's h0 and our h (:data:`H_TEXT`).
+
 Examples
 --------
 >>> from pathlib import Path
