@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .errors import ConvergenceWarning, MeshError, NodeBudgetError
+from .expression import size_expression
 from .geometry import (
     Circle,
     Difference,
@@ -81,4 +82,5 @@ __all__ = [
     "generate",
     "plot_mesh",
     "read",
+    "size_expression",
 ]
