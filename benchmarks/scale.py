@@ -29,6 +29,7 @@ Usage::
 
     python benchmarks/scale.py [--sizes 1e3,1e4,1e5] [--repeat 1] [--peers] [--graded]
                                [--json results.json]
+    python benchmarks/scale.py --tables-from results.json   # print the tables again
 
 ``--sizes 1e3,1e4,1e5,1e6`` adds the million-node run (minutes with today's code).
 """
@@ -333,9 +334,12 @@ def growth_table(results: dict, tools: list[str]) -> str:
         row = [f"{a:.0e} -> {b:.0e}"]
         for tool in tools:
             ra, rb = results[a].get(tool, {}), results[b].get(tool, {})
-            ok = all("wall" in r for r in (ra, rb))
-            row.append(fmt(exponent(ra["wall"], rb["wall"], ra["N"], rb["N"]) if ok else None, ".2f"))
-            row.append(fmt(rb["wall"] / ra["wall"] if ok else None, ".1f"))
+            if not all("wall" in r for r in (ra, rb)):
+                row += ["-", "-"]
+                continue
+            ew = exponent(ra["wall"], rb["wall"], ra["N"], rb["N"])
+            ec = exponent(ra["cpu"], rb["cpu"], ra["N"], rb["N"])
+            row += [f"{ew:.2f} / {ec:.2f}", f"{rb['wall'] / ra['wall']:.1f} / {rb['cpu'] / ra['cpu']:.1f}"]
         rows.append(row)
     header = ["sizes"] + [c for t in tools for c in (f"{t} exponent", f"{t} time ratio")]
     return markdown_table(header, rows)
@@ -416,6 +420,43 @@ def targets(square: dict, graded: dict | None) -> list[list[str]]:
     return rows
 
 
+def case_tables(case: str, results: dict, peers: list[str]) -> str:
+    """The injmesh, growth and peers tables of one case."""
+    title = "uniform unit square" if case == "square" else f"unit disc, h graded {GRADE:g}:1"
+    tools = ["injmesh", "scipy"] + [p for p in peers if case == "square" or p != "triangle"]
+    out = [
+        f"### injmesh, {title}\n",
+        "Stage cells are wall / CPU seconds. B/node = (peak RSS - RSS after imports and the "
+        "first call) / N.\n",
+        injmesh_table(results) + "\n",
+        f"Growth between successive sizes, wall / CPU (exponent = log t ratio / log N ratio), {title}:\n",
+        growth_table(results, tools) + "\n",
+    ]
+    if peers:
+        out += [f"### Peers, {title} (same h; one thread)\n", peers_table(results, tools) + "\n"]
+    return "\n".join(out)
+
+
+def targets_table(all_results: dict) -> tuple[str, list[list[str]]]:
+    rows = targets(all_results["square"], all_results.get("graded"))
+    table = markdown_table(["target", "measured", "result"], rows)
+    return "### Targets of issue 7\n\n" + table, rows
+
+
+def reprint(path: Path) -> None:
+    """Print the tables of a ``--json`` file again, without measuring."""
+    report = json.loads(path.read_text())
+    print(f"_{report['environment']}. Shared machine: compare ratios within this run, "
+          "not seconds across runs._\n")
+    all_results = {
+        case: {float(n): r for n, r in res.items()} for case, res in report["cases"].items()
+    }
+    for case, results in all_results.items():
+        peers = sorted({t for r in results.values() for t in r} - {"injmesh", "scipy"})
+        print(case_tables(case, results, peers))
+    print(targets_table(all_results)[0])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="1e3,1e4,1e5", help="comma-separated node counts (1e6 on request)")
@@ -423,6 +464,8 @@ def main() -> None:
     ap.add_argument("--peers", action="store_true", help="also gmsh Frontal-Delaunay and Triangle")
     ap.add_argument("--graded", action="store_true", help="also the 20:1 graded disc")
     ap.add_argument("--json", type=Path, help="write every measurement to this file")
+    ap.add_argument("--tables-from", type=Path, metavar="JSON",
+                    help="print the tables of an earlier --json file and exit")
     ap.add_argument("--timeout", type=float, default=3600.0, help="seconds allowed to one run")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     ap.add_argument("--case", default="square", choices=CASES, help=argparse.SUPPRESS)
@@ -430,6 +473,9 @@ def main() -> None:
     args = ap.parse_args()
     if args.child:
         print(MARK + json.dumps(child(args.child, args.case, args.n)), flush=True)
+        return
+    if args.tables_from:
+        reprint(args.tables_from)
         return
 
     sizes = sorted(float(s) for s in args.sizes.split(","))
@@ -457,22 +503,11 @@ def main() -> None:
                 r[peer] = run(peer, case, n, args.repeat, args.timeout)
             print(f"<!-- {case} {n:.0e} done -->", file=sys.stderr, flush=True)
         all_results[case] = results
-        title = "uniform unit square" if case == "square" else f"unit disc, h graded {GRADE:g}:1"
-        print(f"### injmesh, {title}\n")
-        print("Stage cells are wall / CPU seconds. B/node = (peak RSS - RSS after imports and the "
-              "first call) / N.\n")
-        print(injmesh_table(results) + "\n")
-        tools = ["injmesh", "scipy"] + [p for p in peers if case == "square" or p != "triangle"]
-        print(f"Growth between successive sizes (exponent = log t ratio / log N ratio), {title}:\n")
-        print(growth_table(results, tools) + "\n")
-        if peers:
-            print(f"### Peers, {title} (same h; one thread)\n")
-            print(peers_table(results, tools) + "\n")
+        print(case_tables(case, results, peers), flush=True)
         report["cases"][case] = {f"{n:.0e}": r for n, r in results.items()}
 
-    rows = targets(all_results["square"], all_results.get("graded"))
-    print("### Targets of issue 7\n")
-    print(markdown_table(["target", "measured", "result"], rows))
+    table, rows = targets_table(all_results)
+    print(table)
     report["targets"] = [dict(zip(("target", "measured", "result"), r, strict=True)) for r in rows]
     if args.json:
         tmp = args.json.with_name(args.json.name + ".tmp")
