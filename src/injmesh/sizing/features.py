@@ -1,0 +1,339 @@
+"""Local feature size: how thick the domain is at each point, and the effective size it implies.
+
+The medial axis of a domain is the set of points with two or more nearest boundary points; there
+the gradient of the signed distance d is discontinuous.  On a background grid, two neighbouring
+nodes (8-neighbourhood) whose nearest boundary points lie on *roughly opposite walls* -- the unit
+vectors n = (x - b(x)) / |x - b(x)| from their nearest boundary points b make an angle of more
+than ``180 - corner_angle`` degrees -- straddle the medial axis, and both are marked as
+medial-axis nodes.  Branches of the medial axis that run into a corner wider than
+``corner_angle`` (the diagonals of a square) join walls that are not opposite and are not
+marked, so convex corners of a thick region do not make it "thin"; a spike or a neck, whose
+walls are nearly parallel, is.
+
+The feature size is then Persson's local feature size (Persson 2006, Section 2.2), doubled so
+that it is a *width*:
+
+    feature_size(x) = 2 (|d(x)| + d_MA(x)),
+
+with |d(x)| the distance to the boundary and d_MA(x) the distance to the nearest marked
+medial-axis node.  Across a channel of width w it is w everywhere (|d| + d_MA = w / 2 from wall to
+centre line); at the centre of a disc of radius R it is 2R.  It is floored at ``min_size`` and
+capped at twice the domain's diameter (the value where no medial axis is marked).  Nearest
+boundary points are computed exactly on the boundary polylines (primitives' own outlines, or the
+curves traced on the background grid and projected onto the boundary).  Features thinner than
+about two grid spacings may hold no grid node and are then missed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..geometry import Circle, Domain, Polygon, as_domain
+from ._core import SizeError, SizeFunction, SizeLike, as_size_function
+from .background import (
+    DEFAULT_MAX_CELLS,
+    Background,
+    check_grid_options,
+    densify,
+    fit_spacing,
+    make_background,
+    sampled_grid,
+)
+from .fields import GriddedSize
+from .gradation import check_rate, limit_grid
+
+FloatArray = NDArray[np.float64]
+
+#: Default background spacing of :func:`feature_size`, as a fraction of the domain's diameter.
+FEATURE_CELLS = 400
+#: Nearest boundary vertices examined per node (with their two segments each).
+NEAREST_VERTICES = 3
+
+
+def _positive(name: str, value: float | None) -> float | None:
+    if value is None:
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
+        raise SizeError(f"{name} must be a positive number, got {value!r}")
+    if not (math.isfinite(float(value)) and value > 0):
+        raise SizeError(f"{name} must be positive and finite, got {value!r}")
+    return float(value)
+
+
+def _boundary(domain: Domain, grid: Background) -> tuple[FloatArray, FloatArray, NDArray[np.intp]]:
+    """Boundary segments no longer than half a grid spacing.
+
+    Returns the start ``(m, 2)`` and end ``(m, 2)`` of each segment and, for each segment, the
+    index of the one before it on its loop.
+    """
+    step = 0.5 * grid.spacing
+    if isinstance(domain, (Polygon, Circle)):
+        loops = domain.boundary_loops(step)
+    else:
+        from ..geometry.tracing import loops_from_grid
+
+        loops = [domain.project(loop) for loop in loops_from_grid(grid.x, grid.y, grid.d)]
+    a, b, prev = [], [], []
+    offset = 0
+    for loop in loops:
+        if len(loop) < 2:
+            continue
+        dense = densify(np.asarray(loop, dtype=np.float64), step)
+        a.append(dense)
+        b.append(np.roll(dense, -1, axis=0))
+        prev.append(offset + (np.arange(len(dense)) - 1) % len(dense))
+        offset += len(dense)
+    if not a:
+        raise SizeError("the domain has no boundary curve at the background grid's resolution")
+    return np.concatenate(a), np.concatenate(b), np.concatenate(prev)
+
+
+def _nearest_on_boundary(
+    p: FloatArray, seg_a: FloatArray, seg_b: FloatArray, prev: NDArray[np.intp]
+) -> tuple[FloatArray, FloatArray]:
+    """Distance from each point to the boundary polylines and the nearest boundary point.
+
+    Segment ``k`` runs from vertex ``k`` (``seg_a[k]``) to the next one; the candidates are the
+    two segments at each of the ``NEAREST_VERTICES`` nearest vertices.
+    """
+    from scipy.spatial import cKDTree
+
+    k = min(NEAREST_VERTICES, len(seg_a))
+    _, near = cKDTree(seg_a).query(p, k=k)
+    near = near.reshape(len(p), k)
+    cand = np.concatenate([near, prev[near]], axis=1)  # (n, 2k) segment ids
+    a, b = seg_a[cand], seg_b[cand]
+    ab = b - a
+    L2 = np.maximum(np.einsum("nkj,nkj->nk", ab, ab), np.finfo(float).tiny)
+    t = np.clip(np.einsum("nkj,nkj->nk", p[:, None, :] - a, ab) / L2, 0.0, 1.0)
+    foot = a + t[..., None] * ab
+    dist = np.hypot(*(p[:, None, :] - foot).transpose(2, 0, 1))
+    best = np.argmin(dist, axis=1)
+    rows = np.arange(len(p))
+    return dist[rows, best], foot[rows, best]
+
+
+def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle: float) -> FloatArray:
+    """The feature size at the grid nodes inside the domain and next to it; ``inf`` elsewhere."""
+    from scipy import ndimage
+
+    inside = grid.inside
+    band = grid.band
+    near = inside | band
+    p = grid.nodes(near)
+    shape = grid.d.shape
+    # Exact nearest boundary points for the nodes next to the boundary (the seeds); every other
+    # node takes the nearest point of its nearest seed (a Euclidean distance transform), which
+    # is off by at most about a spacing along the wall -- immaterial for the directions compared
+    # below, which matter only a few spacings away from the walls.
+    seeds = band.copy()
+    seeds[:-1, :] |= band[1:, :] & inside[:-1, :]
+    seeds[1:, :] |= band[:-1, :] & inside[1:, :]
+    seeds[:, :-1] |= band[:, 1:] & inside[:, :-1]
+    seeds[:, 1:] |= band[:, :-1] & inside[:, 1:]
+    seg_a, seg_b, prev = _boundary(domain, grid)
+    _, seed_foot = _nearest_on_boundary(grid.nodes(seeds), seg_a, seg_b, prev)
+    feet = np.zeros(shape + (2,))
+    feet[seeds] = seed_foot
+    _, (jj, ii) = ndimage.distance_transform_edt(~seeds, return_indices=True)
+    foot = feet[jj, ii][near]
+    r_near = np.hypot(*(p - foot).T)
+    r = np.full(shape, np.inf)
+    r[near] = r_near
+    unit = np.zeros(shape + (2,))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = (p - foot) / r_near[:, None]
+    unit[near] = np.where(r_near[:, None] > 0, u, 0.0)
+    # Medial-axis nodes: neighbours inside whose nearest walls face each other.  Nodes closer
+    # to the boundary than a quarter spacing are left out: on the boundary itself the direction
+    # to the polyline's nearest point is arbitrary (a node on a circle lies outside its chords),
+    # and no medial axis the grid resolves passes that close to a wall.
+    limit = -math.cos(math.radians(corner_angle))
+    inside = inside & (r > 0.25 * grid.spacing)
+    medial = np.zeros(shape, dtype=bool)
+    ny, nx = shape
+    for dj, di in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        sa = (slice(0, ny - dj), slice(max(0, -di), nx - max(0, di)))
+        sb = (slice(dj, ny), slice(max(0, di), nx - max(0, -di) if di < 0 else nx))
+        both = inside[sa] & inside[sb]
+        dot = np.einsum("...j,...j->...", unit[sa], unit[sb])
+        hit = both & (dot < limit)
+        medial[sa] |= hit
+        medial[sb] |= hit
+    if medial.any():
+        d_ma = ndimage.distance_transform_edt(~medial, sampling=grid.spacing)
+    else:
+        d_ma = np.full(shape, np.inf)
+    fs = np.full(shape, np.inf)
+    fs[near] = np.clip(2.0 * (r[near] + d_ma[near]), min_size, 2.0 * domain.diameter)
+    return fs
+
+
+def _fill_outside(values: FloatArray) -> FloatArray:
+    """Nodes that impose nothing (``inf``) take the value of the nearest node that does."""
+    from scipy import ndimage
+
+    known = np.isfinite(values)
+    if known.all():
+        return values
+    _, (jj, ii) = ndimage.distance_transform_edt(~known, return_indices=True)
+    out: FloatArray = values[jj, ii]
+    return out
+
+
+def feature_size(
+    domain: Domain | Callable[[FloatArray], FloatArray],
+    *,
+    spacing: float | None = None,
+    min_size: float | None = None,
+    corner_angle: float = 60.0,
+    max_cells: int = DEFAULT_MAX_CELLS,
+    bbox: ArrayLike | None = None,
+) -> GriddedSize:
+    """The local thickness of the domain: about w across a channel of width w.
+
+    See the module docstring for the formula, ``2 (|d| + d_MA)`` with d_MA the distance to the
+    medial axis between roughly opposite walls.
+
+    Parameters
+    ----------
+    domain : Domain or callable
+        The domain (a plain signed distance needs ``bbox``).
+    spacing : float, optional
+        Background grid spacing (default: the domain's diameter / 400, or ``min_size / 2`` when
+        that is smaller, enlarged to keep at most ``max_cells`` nodes).  Features thinner than
+        about two spacings may be missed.
+    min_size : float, optional
+        Floor of the result (default: two grid spacings), so it never vanishes at the tip of a
+        spike or in a neck that pinches to zero width.
+    corner_angle : float
+        Degrees.  Medial-axis branches into corners at least this wide (a square's diagonals)
+        are ignored; sharper wedges count as thin parts.
+    max_cells : int
+        Cap on the background grid's nodes.
+    bbox : (xmin, ymin, xmax, ymax), optional
+        Required for a callable ``domain``.
+
+    Returns
+    -------
+    GriddedSize
+        Feature sizes on the background grid, in ``[min_size, 2 * diameter]``; nodes outside
+        the domain take the value of the nearest node inside.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from injmesh import Rectangle
+    >>> fs = feature_size(Rectangle((0, 0), (4, 0.2)), spacing=0.01)
+    >>> bool(np.all(np.abs(fs(np.array([[2.0, 0.0], [2.0, 0.1], [1.0, 0.05]])) - 0.2) < 0.02))
+    True
+    """
+    check_grid_options(spacing, max_cells)
+    floor = _positive("min_size", min_size)
+    angle = _positive("corner_angle", corner_angle)
+    assert angle is not None
+    if not angle < 180:
+        raise SizeError(f"corner_angle must be below 180 degrees, got {corner_angle!r}")
+    dom = as_domain(domain, bbox=bbox)
+    if spacing is None:
+        wanted = dom.diameter / FEATURE_CELLS
+        if floor is not None:
+            wanted = min(wanted, floor / 2)
+        s, capped = fit_spacing(dom, wanted, int(max_cells), explicit=False)
+    else:
+        s, capped = fit_spacing(dom, float(spacing), int(max_cells), explicit=True)
+    grid = make_background(dom, s, capped)
+    fs = feature_grid(dom, grid, 2.0 * s if floor is None else floor, angle)
+    return GriddedSize._trusted(grid.x, grid.y, _fill_outside(fs))
+
+
+class _Lower:
+    """``min(a(p), b(p))`` of two size functions (used when the grid is coarser than h)."""
+
+    def __init__(self, a: Callable[[FloatArray], FloatArray], b: Callable[[FloatArray], FloatArray]):
+        self.a, self.b = a, b
+
+    def __call__(self, p: FloatArray) -> FloatArray:
+        return np.minimum(self.a(p), self.b(p))
+
+
+def effective_size(
+    size: SizeLike,
+    domain: Domain | Callable[[FloatArray], FloatArray],
+    *,
+    layers: float = 2,
+    rate: float | None = 0.2,
+    min_size: float | None = None,
+    corner_angle: float = 60.0,
+    spacing: float | None = None,
+    max_cells: int = DEFAULT_MAX_CELLS,
+    bbox: ArrayLike | None = None,
+) -> SizeFunction:
+    """The size the mesher should follow: ``min(h, feature_size / layers)``, gradation-limited.
+
+    Parameters
+    ----------
+    size : float, callable or size field
+        The user's h; evaluated only inside the domain and on its boundary.
+    domain : Domain or callable
+        The domain (a plain signed distance needs ``bbox``).
+    layers : float
+        Elements across the thinnest parts: the size is at most ``feature_size / layers``.
+    rate : float or None
+        Gradation limit |grad h| <= rate (:func:`limit_gradation`); None to skip it.
+    min_size : float, optional
+        Floor of the feature size (default: two background grid spacings).
+    corner_angle : float
+        See :func:`feature_size`.
+    spacing, max_cells :
+        Background grid, as in :func:`limit_gradation`; the default spacing is the smaller of
+        h_min / 4 and the domain's diameter / 400, so that features thinner than h are seen.
+    bbox : (xmin, ymin, xmax, ymax), optional
+        Required for a callable ``domain``.
+
+    Returns
+    -------
+    SizeFunction
+        When neither the feature size nor the gradation limit changes h at any grid node, h
+        itself restricted to the domain (:meth:`SizeFunction.restricted`), so a size that needs
+        no correction is followed exactly.  Otherwise the corrected sizes on the background grid
+        (a :class:`GriddedSize`); if the grid had to be coarser than h_min / 4 (``max_cells``),
+        the minimum of that and the restricted h, so no detail of h is lost.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from injmesh import Rectangle
+    >>> channel = Rectangle((0, 0), (2, 0.1))
+    >>> h = effective_size(0.2, channel)
+    >>> bool(h(np.array([[1.0, 0.05]]))[0] < 0.06)
+    True
+    """
+    n_layers = _positive("layers", layers)
+    assert n_layers is not None
+    g = None if rate is None else check_rate(rate)
+    floor = _positive("min_size", min_size)
+    angle = _positive("corner_angle", corner_angle)
+    assert angle is not None
+    check_grid_options(spacing, max_cells)
+    dom = as_domain(domain, bbox=bbox)
+    h = as_size_function(size)
+    grid, h0 = sampled_grid(
+        h, dom, spacing, int(max_cells), 0.0 if g is None else g, dom.diameter / FEATURE_CELLS
+    )
+    fs = feature_grid(dom, grid, 2.0 * grid.spacing if floor is None else floor, angle)
+    target = np.minimum(h0, fs / n_layers)
+    out = target if g is None else limit_grid(target, grid, g)
+    # Changes outside (band nodes lowered to the limited extension) do not count, nor rounding:
+    # a cone of slope exactly ``rate`` comes back lower by an ulp here and there.
+    inside = grid.inside
+    if np.all(out[inside] >= h0[inside] * (1.0 - 1e-12)):
+        return h.restricted(dom)
+    field = GriddedSize._trusted(grid.x, grid.y, _fill_outside(out))
+    if grid.capped:
+        return SizeFunction(_Lower(field, h.restricted(dom)))
+    return SizeFunction(field)
