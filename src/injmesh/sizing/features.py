@@ -49,9 +49,11 @@ from .gradation import check_rate, limit_grid
 FloatArray = NDArray[np.float64]
 
 #: Default background spacing of :func:`feature_size`, as a fraction of the domain's diameter.
-FEATURE_CELLS = 400
+FEATURE_CELLS = 256
 #: Nearest boundary vertices examined per node (with their two segments each).
 NEAREST_VERTICES = 3
+#: Nodes closer to the boundary than this many grid spacings get exact nearest boundary points.
+EXACT_WITHIN = 8.0
 
 
 def _positive(name: str, value: float | None) -> float | None:
@@ -127,9 +129,10 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
     p = grid.nodes(near)
     shape = grid.d.shape
     # Exact nearest boundary points for the nodes next to the boundary (the seeds); every other
-    # node takes the nearest point of its nearest seed (a Euclidean distance transform), which
-    # is off by at most about a spacing along the wall -- immaterial for the directions compared
-    # below, which matter only a few spacings away from the walls.
+    # node first takes the nearest point of its nearest seed (a Euclidean distance transform),
+    # off by about a spacing along the wall, and the nodes within EXACT_WITHIN spacings of the
+    # boundary are then computed exactly: beyond that the direction to the wall, all that the
+    # comparison below uses, is off by less than 1 / EXACT_WITHIN radian.
     seeds = band.copy()
     seeds[:-1, :] |= band[1:, :] & inside[:-1, :]
     seeds[1:, :] |= band[:-1, :] & inside[1:, :]
@@ -142,6 +145,8 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
     _, (jj, ii) = ndimage.distance_transform_edt(~seeds, return_indices=True)
     foot = feet[jj, ii][near]
     r_near = np.hypot(*(p - foot).T)
+    close = r_near < EXACT_WITHIN * grid.spacing
+    r_near[close], foot[close] = _nearest_on_boundary(p[close], seg_a, seg_b, prev)
     r = np.full(shape, np.inf)
     r[near] = r_near
     unit = np.zeros(shape + (2,))
@@ -149,27 +154,45 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
         u = (p - foot) / r_near[:, None]
     unit[near] = np.where(r_near[:, None] > 0, u, 0.0)
     # Medial-axis nodes: neighbours inside whose nearest walls face each other.  Nodes closer
-    # to the boundary than a quarter spacing are left out: on the boundary itself the direction
+    # to the boundary than half a spacing are left out: on the boundary itself the direction
     # to the polyline's nearest point is arbitrary (a node on a circle lies outside its chords),
     # and no medial axis the grid resolves passes that close to a wall.
     limit = -math.cos(math.radians(corner_angle))
-    inside = inside & (r > 0.25 * grid.spacing)
+    inside = inside & (r > 0.5 * grid.spacing)
+    xy = np.stack(np.meshgrid(grid.x, grid.y), axis=-1)
     medial = np.zeros(shape, dtype=bool)
+    axis_point = np.zeros(shape + (2,))  # where the medial axis crosses a marked node's pair
     ny, nx = shape
     for dj, di in ((0, 1), (1, 0), (1, 1), (1, -1)):
         sa = (slice(0, ny - dj), slice(max(0, -di), nx - max(0, di)))
-        sb = (slice(dj, ny), slice(max(0, di), nx - max(0, -di) if di < 0 else nx))
-        both = inside[sa] & inside[sb]
-        dot = np.einsum("...j,...j->...", unit[sa], unit[sb])
-        hit = both & (dot < limit)
-        medial[sa] |= hit
-        medial[sb] |= hit
-    if medial.any():
-        d_ma = ndimage.distance_transform_edt(~medial, sampling=grid.spacing)
-    else:
-        d_ma = np.full(shape, np.inf)
+        sb = (slice(dj, ny), slice(max(0, di), nx + min(0, di)))
+        na, nb = unit[sa], unit[sb]
+        hit = inside[sa] & inside[sb] & (np.einsum("...j,...j->...", na, nb) < limit)
+        if not hit.any():
+            continue
+        # The crossing x_a + t (x_b - x_a) is where the distances to the two walls (planes
+        # through the nearest points, normals n_a and n_b) are equal.
+        step = xy[sb][hit] - xy[sa][hit]
+        ra, rb = r[sa][hit], r[sb][hit]
+        grow_a = np.einsum("kj,kj->k", step, na[hit])
+        grow_b = -np.einsum("kj,kj->k", step, nb[hit])
+        total = grow_a + grow_b
+        t = np.where(total > 0, (rb - ra + grow_b) / np.where(total > 0, total, 1.0), 0.5)
+        crossing = xy[sa][hit] + np.clip(t, 0.0, 1.0)[:, None] * step
+        for sl in (sa, sb):
+            view = axis_point[sl]
+            view[hit] = crossing
+            axis_point[sl] = view
+            marked = medial[sl]
+            marked[hit] = True
+            medial[sl] = marked
     fs = np.full(shape, np.inf)
-    fs[near] = np.clip(2.0 * (r[near] + d_ma[near]), min_size, 2.0 * domain.diameter)
+    if medial.any():
+        # d_MA: distance to the crossing recorded at the nearest marked node.
+        _, (mj, mi) = ndimage.distance_transform_edt(~medial, return_indices=True)
+        d_ma = np.hypot(*(xy - axis_point[mj, mi]).transpose(2, 0, 1))
+        fs[near] = 2.0 * (r[near] + d_ma[near])
+    fs[near] = np.clip(fs[near], min_size, 2.0 * domain.diameter)
     return fs
 
 
@@ -190,7 +213,7 @@ def feature_size(
     *,
     spacing: float | None = None,
     min_size: float | None = None,
-    corner_angle: float = 60.0,
+    corner_angle: float = 30.0,
     max_cells: int = DEFAULT_MAX_CELLS,
     bbox: ArrayLike | None = None,
 ) -> GriddedSize:
@@ -204,7 +227,7 @@ def feature_size(
     domain : Domain or callable
         The domain (a plain signed distance needs ``bbox``).
     spacing : float, optional
-        Background grid spacing (default: the domain's diameter / 400, or ``min_size / 2`` when
+        Background grid spacing (default: the domain's diameter / 256, or ``min_size / 2`` when
         that is smaller, enlarged to keep at most ``max_cells`` nodes).  Features thinner than
         about two spacings may be missed.
     min_size : float, optional
@@ -268,7 +291,7 @@ def effective_size(
     layers: float = 2,
     rate: float | None = 0.2,
     min_size: float | None = None,
-    corner_angle: float = 60.0,
+    corner_angle: float = 30.0,
     spacing: float | None = None,
     max_cells: int = DEFAULT_MAX_CELLS,
     bbox: ArrayLike | None = None,
@@ -291,7 +314,7 @@ def effective_size(
         See :func:`feature_size`.
     spacing, max_cells :
         Background grid, as in :func:`limit_gradation`; the default spacing is the smaller of
-        h_min / 4 and the domain's diameter / 400, so that features thinner than h are seen.
+        h_min / 4 and the domain's diameter / 256, so that features thinner than h are seen.
     bbox : (xmin, ymin, xmax, ymax), optional
         Required for a callable ``domain``.
 
@@ -333,7 +356,7 @@ def effective_size(
     inside = grid.inside
     if np.all(out[inside] >= h0[inside] * (1.0 - 1e-12)):
         return h.restricted(dom)
-    field = GriddedSize._trusted(grid.x, grid.y, _fill_outside(out))
+    field = GriddedSize._trusted(grid.x, grid.y, np.minimum(_fill_outside(out), dom.diameter))
     if grid.capped:
         return SizeFunction(_Lower(field, h.restricted(dom)))
     return SizeFunction(field)

@@ -101,4 +101,4 @@ def limit_gradation(
     dom = as_domain(domain, bbox=bbox)
     h = as_size_function(size)
     grid, values = sampled_grid(h, dom, spacing, int(max_cells), g)
-    return GriddedSize._trusted(grid.x, grid.y, limit_grid(values, grid, g))
+    return GriddedSize._trusted(grid.x, grid.y, np.minimum(limit_grid(values, grid, g), dom.diameter))
