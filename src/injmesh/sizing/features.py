@@ -158,7 +158,7 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
     # to the polyline's nearest point is arbitrary (a node on a circle lies outside its chords),
     # and no medial axis the grid resolves passes that close to a wall.
     limit = -math.cos(math.radians(corner_angle))
-    inside = inside & (r > 0.5 * grid.spacing)
+    deep = inside & (r > 0.5 * grid.spacing)
     xy = np.stack(np.meshgrid(grid.x, grid.y), axis=-1)
     medial = np.zeros(shape, dtype=bool)
     axis_point = np.zeros(shape + (2,))  # where the medial axis crosses a marked node's pair
@@ -167,7 +167,7 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
         sa = (slice(0, ny - dj), slice(max(0, -di), nx - max(0, di)))
         sb = (slice(dj, ny), slice(max(0, di), nx + min(0, di)))
         na, nb = unit[sa], unit[sb]
-        hit = inside[sa] & inside[sb] & (np.einsum("...j,...j->...", na, nb) < limit)
+        hit = deep[sa] & deep[sb] & (np.einsum("...j,...j->...", na, nb) < limit)
         if not hit.any():
             continue
         # The crossing x_a + t (x_b - x_a) is where the distances to the two walls (planes
@@ -191,7 +191,9 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
         # d_MA: distance to the crossing recorded at the nearest marked node.
         _, (mj, mi) = ndimage.distance_transform_edt(~medial, return_indices=True)
         d_ma = np.hypot(*(xy - axis_point[mj, mi]).transpose(2, 0, 1))
-        fs[near] = 2.0 * (r[near] + d_ma[near])
+        # Outside (the band) r counts negatively: the formula continues linearly through the
+        # wall instead of folding back up, so interpolation at the wall gives the width.
+        fs[near] = 2.0 * (np.where(inside[near], r[near], -r[near]) + d_ma[near])
     fs[near] = np.clip(fs[near], min_size, 2.0 * domain.diameter)
     return fs
 
