@@ -37,6 +37,11 @@ DEFAULT_MAX_CELLS = 1_000_000
 PAD = 2
 #: Nodes per side of the coarse grid that estimates h_min before the grid is chosen.
 PROBE_CELLS = 64
+#: A grid resolves the domain's thickness when it has this many inside nodes per inside node
+#: next to the boundary (about six nodes across); otherwise it is refined, at most
+#: THIN_REFINEMENTS times.
+THICK_RATIO = 3.0
+THIN_REFINEMENTS = 12
 #: Points per sdf call while sampling the grid (bounds the memory of sdf temporaries).
 CHUNK = 1 << 18
 
@@ -115,7 +120,35 @@ def fit_spacing(domain: Domain, wanted: float, max_cells: int, explicit: bool) -
     return s, True
 
 
-def make_background(domain: Domain, spacing: float, capped: bool = False) -> Background:
+def resolving_background(domain: Domain, spacing: float, max_cells: int, explicit: bool) -> Background:
+    """The background grid of about ``spacing``, refined where the domain is thin everywhere.
+
+    A domain only a few cells thick (a long channel in a box sized by its length, or a size
+    much larger than the width) would leave its medial axis unresolved: while fewer than
+    THICK_RATIO inside nodes stand per inside node next to the boundary, the spacing is halved
+    (at most THIN_REFINEMENTS times, within ``max_cells``).  An explicit spacing is kept.
+    """
+    s, capped = fit_spacing(domain, spacing, max_cells, explicit)
+    grid = make_background(domain, s, capped, check=False)
+    for _ in range(0 if explicit else THIN_REFINEMENTS):
+        inside = grid.inside
+        edge = inside & ~(
+            np.pad(inside, 1, constant_values=False)[:-2, 1:-1]
+            & np.pad(inside, 1, constant_values=False)[2:, 1:-1]
+            & np.pad(inside, 1, constant_values=False)[1:-1, :-2]
+            & np.pad(inside, 1, constant_values=False)[1:-1, 2:]
+        )
+        if inside.sum() >= THICK_RATIO * max(1, int(edge.sum())):
+            break
+        finer, capped = fit_spacing(domain, 0.5 * s, max_cells, explicit=False)
+        if finer > 0.75 * s:
+            break  # the cell cap allows no finer grid
+        s = finer
+        grid = make_background(domain, s, capped, check=False)
+    return make_background(domain, s, capped) if not grid.inside.any() else grid
+
+
+def make_background(domain: Domain, spacing: float, capped: bool = False, check: bool = True) -> Background:
     """Sample the signed distance on a grid of the given spacing over the domain's box."""
     x0, y0, _, _ = domain.bbox
     nx, ny = cells(domain.bbox, spacing)
@@ -128,7 +161,7 @@ def make_background(domain: Domain, spacing: float, capped: bool = False) -> Bac
         X, Y = np.meshgrid(x, yy)
         d[j0 * nx : j0 * nx + X.size] = domain.sdf(np.stack([X.ravel(), Y.ravel()], axis=1))
     grid = Background(x=x, y=y, d=d.reshape(ny, nx), spacing=float(spacing), capped=capped)
-    if not grid.inside.any():
+    if check and not grid.inside.any():
         raise SizeError(
             f"no background grid node (spacing {spacing:g}) lies inside the domain: it is thinner "
             "than the grid; pass a smaller spacing"
@@ -208,21 +241,18 @@ def sampled_grid(
     refined once.
     """
     if spacing is not None:
-        s, capped = fit_spacing(domain, float(spacing), max_cells, explicit=True)
-        grid = make_background(domain, s, capped)
+        grid = resolving_background(domain, float(spacing), max_cells, explicit=True)
         return grid, sample_size(h, domain, grid, rate)
     h_min = probe_min(h, domain)
-    s, capped = fit_spacing(domain, min(h_min / CELLS_PER_H, max_spacing), max_cells, explicit=False)
-    grid = make_background(domain, s, capped)
+    grid = resolving_background(domain, min(h_min / CELLS_PER_H, max_spacing), max_cells, explicit=False)
     values = sample_size(h, domain, grid, rate)
     finer = float(values.min())
-    if not capped and finer / CELLS_PER_H < 0.5 * s:
-        s, capped = fit_spacing(domain, finer / CELLS_PER_H, max_cells, explicit=False)
-        grid = make_background(domain, s, capped)
+    if not grid.capped and finer / CELLS_PER_H < 0.5 * grid.spacing:
+        grid = resolving_background(domain, finer / CELLS_PER_H, max_cells, explicit=False)
         values = sample_size(h, domain, grid, rate)
-    if capped:
+    if grid.capped:
         logger.info(
             "background grid capped at %d nodes: spacing %.3g for a smallest size %.3g",
-            max_cells, s, float(values.min()),
+            max_cells, grid.spacing, float(values.min()),
         )
     return grid, values

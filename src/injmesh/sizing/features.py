@@ -39,8 +39,7 @@ from .background import (
     Background,
     check_grid_options,
     densify,
-    fit_spacing,
-    make_background,
+    resolving_background,
     sampled_grid,
 )
 from .fields import GriddedSize
@@ -52,8 +51,9 @@ FloatArray = NDArray[np.float64]
 FEATURE_CELLS = 256
 #: Nearest boundary vertices examined per node (with their two segments each).
 NEAREST_VERTICES = 3
-#: Nodes closer to the boundary than this many grid spacings get exact nearest boundary points.
-EXACT_WITHIN = 8.0
+#: Neighbouring nodes whose approximate nearest boundary points are more than this many grid
+#: spacings apart straddle the medial axis, perhaps: their nearest points are computed exactly.
+CANDIDATE_JUMP = 2.0
 
 
 def _positive(name: str, value: float | None) -> float | None:
@@ -126,56 +126,88 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
     inside = grid.inside
     band = grid.band
     near = inside | band
-    p = grid.nodes(near)
     shape = grid.d.shape
     # Exact nearest boundary points for the nodes next to the boundary (the seeds); every other
-    # node first takes the nearest point of its nearest seed (a Euclidean distance transform),
-    # off by about a spacing along the wall, and the nodes within EXACT_WITHIN spacings of the
-    # boundary are then computed exactly: beyond that the direction to the wall, all that the
-    # comparison below uses, is off by less than 1 / EXACT_WITHIN radian.
+    # node takes the nearest point of its nearest seed (a Euclidean distance transform), off by
+    # about a spacing along the wall: its distance r is then accurate to about a spacing, but
+    # its direction to the wall is not reliable near the medial axis.  So the medial axis is
+    # found in two passes: candidates first, then the exact test on exact nearest points.
     seeds = band.copy()
     seeds[:-1, :] |= band[1:, :] & inside[:-1, :]
     seeds[1:, :] |= band[:-1, :] & inside[1:, :]
     seeds[:, :-1] |= band[:, 1:] & inside[:, :-1]
     seeds[:, 1:] |= band[:, :-1] & inside[:, 1:]
     seg_a, seg_b, prev = _boundary(domain, grid)
-    _, seed_foot = _nearest_on_boundary(grid.nodes(seeds), seg_a, seg_b, prev)
+    exact = seeds.copy()
     feet = np.zeros(shape + (2,))
-    feet[seeds] = seed_foot
+    feet[seeds] = _nearest_on_boundary(grid.nodes(seeds), seg_a, seg_b, prev)[1]
     _, (jj, ii) = ndimage.distance_transform_edt(~seeds, return_indices=True)
-    foot = feet[jj, ii][near]
-    r_near = np.hypot(*(p - foot).T)
-    close = r_near < EXACT_WITHIN * grid.spacing
-    r_near[close], foot[close] = _nearest_on_boundary(p[close], seg_a, seg_b, prev)
-    r = np.full(shape, np.inf)
-    r[near] = r_near
-    unit = np.zeros(shape + (2,))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        u = (p - foot) / r_near[:, None]
-    unit[near] = np.where(r_near[:, None] > 0, u, 0.0)
-    # Medial-axis nodes: neighbours inside whose nearest walls face each other.  Nodes closer
-    # to the boundary than half a spacing are left out: on the boundary itself the direction
-    # to the polyline's nearest point is arbitrary (a node on a circle lies outside its chords),
-    # and no medial axis the grid resolves passes that close to a wall.
-    limit = -math.cos(math.radians(corner_angle))
-    deep = inside & (r > 0.5 * grid.spacing)
+    feet = feet[jj, ii]
     xy = np.stack(np.meshgrid(grid.x, grid.y), axis=-1)
-    medial = np.zeros(shape, dtype=bool)
-    axis_point = np.zeros(shape + (2,))  # where the medial axis crosses a marked node's pair
     ny, nx = shape
-    for dj, di in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        sa = (slice(0, ny - dj), slice(max(0, -di), nx - max(0, di)))
-        sb = (slice(dj, ny), slice(max(0, di), nx + min(0, di)))
-        na, nb = unit[sa], unit[sb]
-        hit = deep[sa] & deep[sb] & (np.einsum("...j,...j->...", na, nb) < limit)
+    # Neighbour pairs (a, b) as two slices of the grid: east, north, north-east, north-west.
+    pairs = [
+        (
+            (slice(0, ny - dj), slice(max(0, -di), nx - max(0, di))),
+            (slice(dj, ny), slice(max(0, di), nx + min(0, di))),
+        )
+        for dj, di in ((0, 1), (1, 0), (1, 1), (1, -1))
+    ]
+
+    def facing(limit: float) -> tuple[NDArray[np.bool_], FloatArray, FloatArray, list[NDArray[np.bool_]]]:
+        """Distances, unit directions from the walls, and the node pairs facing within ``limit``."""
+        r = np.hypot(*(xy - feet).transpose(2, 0, 1))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            unit = np.where((r > 0)[..., None], (xy - feet) / r[..., None], 0.0)
+        # Nodes closer to the boundary than half a spacing are left out: on the boundary itself
+        # the direction to the polyline's nearest point is arbitrary (a node on a circle lies
+        # outside its chords), and no medial axis the grid resolves passes that close to a wall.
+        deep = inside & (r > 0.5 * grid.spacing)
+        hits = [
+            deep[sa] & deep[sb] & (np.einsum("...j,...j->...", unit[sa], unit[sb]) < limit)
+            for sa, sb in pairs
+        ]
+        marked = np.zeros(shape, dtype=bool)
+        for (sa, sb), hit in zip(pairs, hits, strict=True):
+            marked[sa] |= hit
+            marked[sb] |= hit
+        return marked, r, unit, hits
+
+    # Candidates: where the approximate nearest point jumps between neighbours (near the medial
+    # axis the nearest seed may lie on any of the walls at about the same distance, so the
+    # approximate direction is not to be trusted there), grown by one node.
+    # The jump that counts grows with the distance to the wall (half of it): inside a convex
+    # wall the nearest points of neighbours spread out by spacing * R / (R - r) anyway, while
+    # across the medial axis they jump from one wall to the other, about 2 r apart.
+    r_approx = np.hypot(*(xy - feet).transpose(2, 0, 1))
+    candidates = np.zeros(shape, dtype=bool)
+    for sa, sb in pairs:
+        gap = np.hypot(*(feet[sa] - feet[sb]).transpose(2, 0, 1))
+        enough = np.maximum(CANDIDATE_JUMP * grid.spacing, 0.5 * np.minimum(r_approx[sa], r_approx[sb]))
+        jump = inside[sa] & inside[sb] & (gap > enough)
+        candidates[sa] |= jump
+        candidates[sb] |= jump
+    grown = candidates.copy()
+    grown[1:, :] |= candidates[:-1, :]
+    grown[:-1, :] |= candidates[1:, :]
+    candidates = grown.copy()
+    candidates[:, 1:] |= grown[:, :-1]
+    candidates[:, :-1] |= grown[:, 1:]
+    todo = candidates & inside & ~exact
+    if todo.any():
+        feet[todo] = _nearest_on_boundary(xy[todo], seg_a, seg_b, prev)[1]
+    medial, r, unit, hits = facing(-math.cos(math.radians(corner_angle)))
+    axis_point = np.zeros(shape + (2,))  # where the medial axis crosses a marked node's pair
+    for (sa, sb), hit in zip(pairs, hits, strict=True):
         if not hit.any():
             continue
         # The crossing x_a + t (x_b - x_a) is where the distances to the two walls (planes
         # through the nearest points, normals n_a and n_b) are equal.
+        na, nb = unit[sa][hit], unit[sb][hit]
         step = xy[sb][hit] - xy[sa][hit]
         ra, rb = r[sa][hit], r[sb][hit]
-        grow_a = np.einsum("kj,kj->k", step, na[hit])
-        grow_b = -np.einsum("kj,kj->k", step, nb[hit])
+        grow_a = np.einsum("kj,kj->k", step, na)
+        grow_b = -np.einsum("kj,kj->k", step, nb)
         total = grow_a + grow_b
         t = np.where(total > 0, (rb - ra + grow_b) / np.where(total > 0, total, 1.0), 0.5)
         crossing = xy[sa][hit] + np.clip(t, 0.0, 1.0)[:, None] * step
@@ -183,9 +215,6 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
             view = axis_point[sl]
             view[hit] = crossing
             axis_point[sl] = view
-            marked = medial[sl]
-            marked[hit] = True
-            medial[sl] = marked
     fs = np.full(shape, np.inf)
     if medial.any():
         # d_MA: distance to the crossing recorded at the nearest marked node.
@@ -268,11 +297,10 @@ def feature_size(
         wanted = dom.diameter / FEATURE_CELLS
         if floor is not None:
             wanted = min(wanted, floor / 2)
-        s, capped = fit_spacing(dom, wanted, int(max_cells), explicit=False)
+        grid = resolving_background(dom, wanted, int(max_cells), explicit=False)
     else:
-        s, capped = fit_spacing(dom, float(spacing), int(max_cells), explicit=True)
-    grid = make_background(dom, s, capped)
-    fs = feature_grid(dom, grid, 2.0 * s if floor is None else floor, angle)
+        grid = resolving_background(dom, float(spacing), int(max_cells), explicit=True)
+    fs = feature_grid(dom, grid, 2.0 * grid.spacing if floor is None else floor, angle)
     return GriddedSize._trusted(grid.x, grid.y, _fill_outside(fs))
 
 
