@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import injmesh
 from injmesh import Circle, Rectangle, SizeError
@@ -152,3 +154,27 @@ def test_jump_meshes_well_shaped_after_limiting() -> None:
     """Issue 9's target: a 20:1 jump gives q_min >= 0.7 once limited (before: slivers)."""
     mesh = injmesh.generate(SQUARE, limit_gradation(jump, SQUARE, 0.2))
     assert mesh.quality().min() >= 0.7
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    ny=st.integers(1, 25),
+    nx=st.integers(1, 25),
+    rate=st.floats(0.05, 2.0),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_kernel_invariants_on_random_grids(ny: int, nx: int, rate: float, seed: int) -> None:
+    """Below h0, within the upwind limit everywhere, and a fixed point (limiting twice = once)."""
+    from injmesh.kernels.fastmarch import limit_gradient
+
+    rng = np.random.default_rng(seed)
+    h0 = rng.uniform(0.01, 1.0, (ny, nx))
+    h0[rng.uniform(size=(ny, nx)) < 0.2] = np.inf  # nodes that impose nothing
+    if not np.isfinite(h0).any():
+        h0[0, 0] = 0.5
+    dx, dy = rng.uniform(0.01, 0.1, 2)
+    h = limit_gradient(h0, dx, dy, rate)
+    assert np.all(h <= h0) and np.all(np.isfinite(h))
+    g = GriddedSize(np.arange(nx + 1) * dx, np.arange(ny + 1) * dy, np.pad(h, ((0, 1), (0, 1)), mode="edge"))
+    assert upwind_gradient(g)[:ny, :nx].max() <= rate * (1 + 1e-9)
+    assert np.array_equal(limit_gradient(h, dx, dy, rate), h)

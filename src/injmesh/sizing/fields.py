@@ -229,9 +229,29 @@ class ScatteredSize:
         if len(pts) >= 3:
             s = np.linalg.svd(local - local.mean(axis=0), compute_uv=False)
             if s[1] > 1e-9 * s[0]:
-                from scipy.spatial import Delaunay
+                self._locate(local)
 
-                self._tri = Delaunay(local)
+    def _locate(self, local: FloatArray) -> None:
+        """Triangulate the samples and bucket the triangles for point location.
+
+        The buckets form a uniform grid over the samples' box with about one triangle per cell,
+        so a point is located by testing the few triangles listed in its cell (numba).
+        """
+        from scipy.spatial import Delaunay
+
+        from ..kernels.interp import bucket_triangles
+
+        tri = np.ascontiguousarray(Delaunay(local).simplices.astype(np.int64))
+        lo = local.min(axis=0)
+        extent = local.max(axis=0) - lo
+        side = float(np.sqrt(extent[0] * extent[1] / max(len(tri), 1)))
+        side = max(side, float(extent.max()) / 4096, 1e-12)
+        nx = max(1, int(np.ceil(extent[0] / side)))
+        ny = max(1, int(np.ceil(extent[1] / side)))
+        self._tri = tri
+        self._local = np.ascontiguousarray(local)
+        self._grid = (float(lo[0]), float(lo[1]), 1.0 / side, nx, ny)
+        self._buckets = bucket_triangles(self._local, tri, lo[0], lo[1], 1.0 / side, nx, ny)
 
     def __repr__(self) -> str:
         kind = "linear" if self._tri is not None else "nearest"
@@ -247,14 +267,14 @@ class ScatteredSize:
         out[nan] = np.nan
         todo = np.flatnonzero(~nan)
         if self._tri is not None and len(todo):
-            simplex = self._tri.find_simplex(q[todo])
-            hit = simplex >= 0
-            k, s = todo[hit], simplex[hit]
-            t = self._tri.transform[s]  # (m, 3, 2): affine map to barycentric coordinates
-            b = np.einsum("mij,mj->mi", t[:, :2, :], q[k] - t[:, 2, :])
-            w = np.concatenate([b, 1.0 - b.sum(axis=1, keepdims=True)], axis=1)
-            vals = self.values[self._tri.simplices[s]]
-            out[k] = np.einsum("mi,mi->m", w, vals)
+            from ..kernels.interp import barycentric
+
+            x0, y0, inv, nx, ny = self._grid
+            vals, hit = barycentric(
+                self._local, self._tri, self.values, self._buckets[0], self._buckets[1],
+                x0, y0, inv, nx, ny, np.ascontiguousarray(q[todo]), 1e-12,
+            )
+            out[todo[hit]] = vals[hit]
             todo = todo[~hit]
         if len(todo):
             _, nearest = self._tree.query(q[todo])
