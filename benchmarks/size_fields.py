@@ -9,6 +9,8 @@
 (c) Timings on a 1e7-cell grid: GriddedSize construction and 1e6 evaluations, ScatteredSize
     construction and 1e6 evaluations, limit_gradation (the whole call and the fast-marching
     kernel alone), feature_size.
+(d) Domains thinner than h somewhere (a channel, a neck, a hole near the rim, a spike): q_min
+    with the plain h and with ``effective_size(h, domain)`` (feature size / 2, rate 0.2).
 
 Usage::
 
@@ -24,7 +26,7 @@ import warnings
 import numpy as np
 
 import injmesh
-from injmesh import Rectangle
+from injmesh import Circle, Polygon, Rectangle
 from injmesh.cases import CASES
 from injmesh.sizing import GriddedSize, ScatteredSize, effective_size, feature_size, limit_gradation
 from injmesh.sizing.background import make_background
@@ -163,6 +165,34 @@ def part_c(repeat: int, skip_large: bool) -> None:
     print()
 
 
+def part_d() -> None:
+    print("(d) thin parts: the plain h vs effective_size(h, domain) (layers 2, rate 0.2)\n")
+    neck = Rectangle((0, 0), (1, 1)) | Rectangle((1, 0.47), (1.5, 0.53)) | Rectangle((1.5, 0), (2.5, 1))
+    spike = Polygon([(0, 0), (1, 0), (1, 0.475), (2, 0.49), (2, 0.51), (1, 0.525), (1, 1), (0, 1)])
+    cases = {
+        "channel 1.5 x 0.08, h = 0.25": (Rectangle((0, 0), (1.5, 0.08)), 0.25),
+        "two squares joined by a 0.06 neck, h = 0.1": (neck, 0.1),
+        "disc, hole 0.03 from the rim, h = 0.1": (Circle((0, 0), 1) - Circle((0.5, 0), 0.47), 0.1),
+        "square with a spike 0.05 -> 0.02 wide, h = 0.1": (spike, 0.1),
+    }
+    print("| domain | size | N | q_min | q_mean | converged | seconds (size + mesh) |")
+    print("|---|---|---|---|---|---|---|")
+    for name, (dom, h) in cases.items():
+        for label in ("h", "effective_size(h)"):
+            t = time.perf_counter()
+            size = h if label == "h" else effective_size(h, dom)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                mesh = injmesh.generate(dom, size)
+            seconds = time.perf_counter() - t
+            q = mesh.quality()
+            print(
+                f"| {name} | {label} | {mesh.n_points} | {q.min():.3f} | {q.mean():.3f} | "
+                f"{mesh.stats.converged} | {seconds:.2f} |"
+            )
+    print()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
@@ -170,6 +200,7 @@ def main() -> None:
     args = parser.parse_args()
     part_a(args.repeat)
     part_b()
+    part_d()
     part_c(args.repeat, args.skip_large)
 
 
