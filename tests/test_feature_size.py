@@ -178,3 +178,18 @@ def test_thin_channel_meshes_with_layers_across() -> None:
     # At least two elements across: some interior node off the walls.
     y = mesh.points[:, 1]
     assert np.any((y > 0.01) & (y < 0.07))
+
+
+def test_feature_size_is_scale_and_translation_invariant() -> None:
+    pts = [(0, 0), (1, 0), (1, 0.475), (2, 0.49), (2, 0.51), (1, 0.525), (1, 1), (0, 1)]
+    base = feature_size(Polygon(pts))
+    q = np.array([[1.2, 0.5], [1.5, 0.5], [0.5, 0.5], [0.02, 0.02]])
+    scaled = feature_size(Polygon(np.asarray(pts) * 1024.0))
+    assert np.allclose(scaled(q * 1024.0), 1024.0 * base(q), rtol=1e-9)
+    # Far from the origin: the thin part is measured the same; in the thick part the medial
+    # axis of the square is one point, seen or not depending on rounding, and the feature size
+    # is only known to be thick (missing a medial-axis node can only raise it).
+    offset = np.array([1e6, -3e5])
+    moved = feature_size(Polygon(np.asarray(pts) + offset))
+    assert np.allclose(moved(q[:2] + offset), base(q[:2]), rtol=1e-4)
+    assert np.all(moved(q[2:] + offset) > 0.95)
