@@ -21,7 +21,14 @@ centre line); at the centre of a disc of radius R it is 2R.  It is floored at ``
 capped at twice the domain's diameter (the value where no medial axis is marked).  Nearest
 boundary points are computed exactly on the boundary polylines (primitives' own outlines, or the
 curves traced on the background grid and projected onto the boundary).  Features thinner than
-about two grid spacings may hold no grid node and are then missed.
+about two grid spacings may hold no grid node and are then missed.  An isolated medial-axis
+point (the centre of a square, where four walls are equidistant) may be seen or not depending on
+how the grid falls; missing one only raises the feature size, and only where the region is thick.
+
+Cost: one signed-distance call on the grid, exact nearest boundary points (a k-d tree over the
+boundary polylines) for the nodes next to the boundary and for the medial-axis candidates, two
+Euclidean distance transforms (scipy.ndimage); the other nodes take the nearest point of their
+nearest boundary node.
 """
 
 from __future__ import annotations
