@@ -169,11 +169,14 @@ def part_d() -> None:
     print("(d) thin parts: the plain h vs effective_size(h, domain) (layers 2, rate 0.2)\n")
     neck = Rectangle((0, 0), (1, 1)) | Rectangle((1, 0.47), (1.5, 0.53)) | Rectangle((1.5, 0), (2.5, 1))
     spike = Polygon([(0, 0), (1, 0), (1, 0.475), (2, 0.49), (2, 0.51), (1, 0.525), (1, 1), (0, 1)])
+    strait = Polygon([(0, 0), (2, 0), (2, 0.9925), (2.3, 0.9925), (2.3, 0), (4.3, 0), (4.3, 2), (2.3, 2),
+                      (2.3, 1.0075), (2, 1.0075), (2, 2), (0, 2)])
     cases = {
         "channel 1.5 x 0.08, h = 0.25": (Rectangle((0, 0), (1.5, 0.08)), 0.25),
         "two squares joined by a 0.06 neck, h = 0.1": (neck, 0.1),
         "disc, hole 0.03 from the rim, h = 0.1": (Circle((0, 0), 1) - Circle((0.5, 0), 0.47), 0.1),
         "square with a spike 0.05 -> 0.02 wide, h = 0.1": (spike, 0.1),
+        "two lobes joined by a 0.015 strait, h = 0.1": (strait, 0.1),
     }
     print("| domain | size | N | q_min | q_mean | converged | seconds (size + mesh) |")
     print("|---|---|---|---|---|---|---|")

@@ -193,3 +193,14 @@ def test_feature_size_is_scale_and_translation_invariant() -> None:
     moved = feature_size(Polygon(np.asarray(pts) + offset))
     assert np.allclose(moved(q[:2] + offset), base(q[:2]), rtol=1e-4)
     assert np.all(moved(q[2:] + offset) > 0.95)
+
+
+def test_a_strait_thinner_than_the_grid_refines_it() -> None:
+    """A 0.015-wide strait between two lobes holds no node of the default grid (spacing ~0.02):
+    the facing walls are found on the boundary and the grid is refined to resolve it."""
+    strait = Polygon([(0, 0), (2, 0), (2, 0.9925), (2.3, 0.9925), (2.3, 0), (4.3, 0), (4.3, 2), (2.3, 2),
+                      (2.3, 1.0075), (2, 1.0075), (2, 2), (0, 2)])
+    fs = feature_size(strait)
+    assert fs.spacing[0] <= 0.015 / 2
+    assert fs(np.array([[2.15, 1.0]]))[0] == pytest.approx(0.015, rel=0.1)
+    assert fs(np.array([[1.0, 1.0]]))[0] > 1.9

@@ -21,7 +21,11 @@ centre line); at the centre of a disc of radius R it is 2R.  It is floored at ``
 capped at twice the domain's diameter (the value where no medial axis is marked).  Nearest
 boundary points are computed exactly on the boundary polylines (primitives' own outlines, or the
 curves traced on the background grid and projected onto the boundary).  Features thinner than
-about two grid spacings may hold no grid node and are then missed.  An isolated medial-axis
+about two grid spacings would hold no grid node: unless a spacing is given, gaps between facing
+walls are also measured on the boundary polylines themselves (:func:`thinnest_gap`: necks,
+straits, slits, a hole near the rim, not the tip of a wedge), and a gap narrower than three
+spacings refines the grid to a third of it (at most 16 times finer, within ``max_cells``).
+Thinner features are missed.  An isolated medial-axis
 point (the centre of a square, where four walls are equidistant) may be seen or not depending on
 how the grid falls; missing one only raises the feature size, and only where the region is thick.
 
@@ -46,7 +50,10 @@ from .background import (
     Background,
     check_grid_options,
     densify,
+    fit_spacing,
+    make_background,
     resolving_background,
+    sample_size,
     sampled_grid,
 )
 from .fields import GriddedSize
@@ -58,6 +65,14 @@ FloatArray = NDArray[np.float64]
 FEATURE_CELLS = 256
 #: Nearest boundary vertices examined per node (with their two segments each).
 NEAREST_VERTICES = 3
+#: Boundary vertices examined around each vertex when looking for a facing wall across a gap,
+#: gaps narrower than GAP_WIDTHS grid spacings that refine the grid, and the largest refinement.
+GAP_NEIGHBOURS = 24
+GAP_WIDTHS = 3.0
+GAP_REFINE = 16.0
+#: A gap counts when the boundary between its two sides is this many times longer than the gap
+#: (so the two walls of a sharp wedge, joined at its tip, do not count).
+GAP_DETOUR = 20.0
 #: Neighbouring nodes whose approximate nearest boundary points are more than this many grid
 #: spacings apart straddle the medial axis, perhaps: their nearest points are computed exactly.
 CANDIDATE_JUMP = 2.0
@@ -101,6 +116,17 @@ def _boundary(domain: Domain, grid: Background) -> tuple[FloatArray, FloatArray,
     return np.concatenate(a), np.concatenate(b), np.concatenate(prev)
 
 
+def _arc_positions(seg_a: FloatArray, seg_b: FloatArray, prev: NDArray[np.intp]) -> tuple[
+        NDArray[np.intp], FloatArray, FloatArray]:
+    """Loop number, arc length from the loop's first vertex, and loop length, per vertex."""
+    first = prev > np.arange(len(prev))  # a loop's first vertex follows its last
+    loop = np.cumsum(first) - 1
+    length = np.hypot(*(seg_b - seg_a).T)
+    total = np.bincount(loop, weights=length)
+    start = np.concatenate([[0.0], np.cumsum(length)[:-1]])
+    return loop, start - start[np.flatnonzero(first)][loop], total[loop]
+
+
 def _nearest_on_boundary(
     p: FloatArray, seg_a: FloatArray, seg_b: FloatArray, prev: NDArray[np.intp]
 ) -> tuple[FloatArray, FloatArray]:
@@ -124,6 +150,66 @@ def _nearest_on_boundary(
     best = np.argmin(dist, axis=1)
     rows = np.arange(len(p))
     return dist[rows, best], foot[rows, best]
+
+
+def thinnest_gap(domain: Domain, grid: Background, corner_angle: float) -> float:
+    """The narrowest gap between facing walls, measured on the boundary itself (inf if none).
+
+    For every boundary vertex v (polylines at half the grid spacing) the nearest
+    ``GAP_NEIGHBOURS`` vertices are examined: a vertex u across the domain (the midpoint of uv
+    inside) whose wall faces v's within ``corner_angle`` (uv within that angle of both inward
+    normals) bounds a gap of width |uv|.  This sees necks, straits and slits too thin to hold a
+    grid node, which the medial-axis test on the grid cannot.
+    """
+    from scipy.spatial import cKDTree
+
+    seg_a, seg_b, prev = _boundary(domain, grid)
+    if len(seg_a) < 4:
+        return np.inf
+    tangent = seg_b - seg_a[prev]
+    normal = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
+    normal /= np.maximum(np.hypot(*normal.T), np.finfo(float).tiny)[:, None]
+    # Orient each normal into the domain (loops from any source, whatever their direction).
+    probe = 0.25 * grid.spacing * normal
+    flip = domain.sdf(seg_a + probe) > domain.sdf(seg_a - probe)
+    normal[flip] *= -1
+    k = min(GAP_NEIGHBOURS, len(seg_a))
+    dist, idx = cKDTree(seg_a).query(seg_a, k=k)
+    v = np.repeat(np.arange(len(seg_a)), k)
+    u, dist = idx.ravel(), dist.ravel()
+    keep = (dist > 0) & (dist < GAP_WIDTHS * grid.spacing)
+    v, u, dist = v[keep], u[keep], dist[keep]
+    e = (seg_a[u] - seg_a[v]) / dist[:, None]
+    cos = math.cos(math.radians(corner_angle))
+    facing = (np.einsum("kj,kj->k", e, normal[v]) > cos) & (-np.einsum("kj,kj->k", e, normal[u]) > cos)
+    v, u, dist = v[facing], u[facing], dist[facing]
+    # Walls meeting at a nearby sharp corner are a wedge, not a gap: the boundary between v and
+    # u must be long compared with the gap (around a lobe, a hole or a deep notch).
+    loop, along, total = _arc_positions(seg_a, seg_b, prev)
+    arc = np.abs(along[u] - along[v])
+    arc = np.where(loop[u] == loop[v], np.minimum(arc, total[v] - arc), np.inf)
+    around = arc > GAP_DETOUR * dist
+    v, u, dist = v[around], u[around], dist[around]
+    if not len(v):
+        return np.inf
+    across = domain.sdf(0.5 * (seg_a[u] + seg_a[v])) < 0
+    return float(dist[across].min()) if across.any() else np.inf
+
+
+def refine_for_gaps(domain: Domain, grid: Background, corner_angle: float, max_cells: int) -> Background:
+    """A finer grid when a gap between facing walls is under GAP_WIDTHS spacings wide.
+
+    The spacing becomes a third of the narrowest gap (at most GAP_REFINE times finer, within
+    ``max_cells``) so the gap holds grid nodes and its medial axis is resolved.
+    """
+    gap = thinnest_gap(domain, grid, corner_angle)
+    if not gap < GAP_WIDTHS * grid.spacing:
+        return grid
+    wanted = max(gap / 3.0, grid.spacing / GAP_REFINE)
+    finer, capped = fit_spacing(domain, wanted, max_cells, explicit=False)
+    if finer >= grid.spacing:
+        return grid
+    return make_background(domain, finer, capped)
 
 
 def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle: float) -> FloatArray:
@@ -307,6 +393,8 @@ def feature_size(
         grid = resolving_background(dom, wanted, int(max_cells), explicit=False)
     else:
         grid = resolving_background(dom, float(spacing), int(max_cells), explicit=True)
+    if spacing is None:
+        grid = refine_for_gaps(dom, grid, angle, int(max_cells))
     fs = feature_grid(dom, grid, 2.0 * grid.spacing if floor is None else floor, angle)
     return GriddedSize._trusted(grid.x, grid.y, _fill_outside(fs))
 
@@ -385,6 +473,10 @@ def effective_size(
     grid, h0 = sampled_grid(
         h, dom, spacing, int(max_cells), 0.0 if g is None else g, dom.diameter / FEATURE_CELLS
     )
+    if spacing is None:
+        finer = refine_for_gaps(dom, grid, angle, int(max_cells))
+        if finer is not grid:
+            grid, h0 = finer, sample_size(h, dom, finer, 0.0 if g is None else g)
     fs = feature_grid(dom, grid, 2.0 * grid.spacing if floor is None else floor, angle)
     target = np.minimum(h0, fs / n_layers)
     out = target if g is None else limit_grid(target, grid, g)
