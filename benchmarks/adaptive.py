@@ -147,8 +147,13 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("adaptive-results"))
     parser.add_argument("--quick", action="store_true", help="small sizes (a minute)")
     parser.add_argument("--skip-location", action="store_true")
+    parser.add_argument("--gradation", type=float, default=adapt.GRADATION)
+    parser.add_argument("--only", choices=["l_shape", "disc_layer"], default=None)
     args = parser.parse_args()
     studies = [l_shape_study(args.quick), disc_study(args.quick)]
+    studies = [s for s in studies if args.only in (None, s.name)]
+    for s in studies:
+        s.gradation = args.gradation
     for study in studies:
         report(study, args.out)
     node_counts(studies)

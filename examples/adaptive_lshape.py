@@ -135,6 +135,7 @@ class Study:
     start: float
     uniform_sizes: list[float]
     targets: list[int]
+    gradation: float = adapt.GRADATION
     uniform: list[tuple[int, float]] = field(default_factory=list)
     adaptive: list[tuple[int, float]] = field(default_factory=list)
     result: adapt.AdaptResult | None = None
@@ -150,7 +151,8 @@ class Study:
             uh, basis = solve_poisson(mesh, self.exact, self.source)
             self.uniform.append((mesh.n_points, h1_error(uh, basis, self.gradient)))
         self.result = adapt.adapt(
-            self.domain, self.solve, self.start, steps=len(self.targets), target_nodes=self.targets
+            self.domain, self.solve, self.start, steps=len(self.targets), target_nodes=self.targets,
+            gradation=self.gradation,
         )
         return self
 
