@@ -91,7 +91,7 @@ Norm = Literal["energy", "L2"]
 logger = logging.getLogger(__name__)
 
 #: Default gradation: h grows by at most this much per unit of distance (h_i <= h_j + g |x_i - x_j|).
-GRADATION = 0.3
+GRADATION = 0.2
 #: Default Jacobi passes smoothing the nodal log-density.
 SMOOTHING = 1
 #: Default largest h, as a fraction of the mesh's bounding-box diagonal.
@@ -102,6 +102,9 @@ H_MIN_FRACTION = 1e-5
 MIN_LOOP_SEGMENTS = 8
 #: adapt() meshes again, once, when a mesh misses its target_nodes by more than this fraction.
 RETRY_MISS = 0.05
+#: adapt() with a tolerance aims at this fraction of it: equidistribution predicts the next
+#: total to within a few percent, and landing just above the goal would cost a whole step.
+TOLERANCE_MARGIN = 0.9
 #: Calibration of the node-count estimate N_est (module docstring), fitted on injmesh meshes.
 AREA_FACTOR = 1.0
 BOUNDARY_FACTOR = 0.5
@@ -1073,8 +1076,8 @@ def adapt(
     target_nodes : float or sequence of float, optional
         Node count of each new mesh: one number for every step, or one per step.
     tolerance : float, optional
-        Instead of ``target_nodes``: the indicator total to reach; the loop stops early once a
-        mesh reaches it.
+        Instead of ``target_nodes``: the indicator total to reach; each remesh aims at
+        ``TOLERANCE_MARGIN`` (0.9) times it, and the loop stops early once a mesh reaches it.
     order, norm, gradation, h_min, h_max, smoothing
         As in :func:`size_from_indicator`.
     bbox : optional
@@ -1160,7 +1163,8 @@ def adapt(
             break
         target = targets[k]
         common: dict[str, Any] = dict(
-            tolerance=None if target is not None else tolerance, norm=norm, order=order,
+            tolerance=None if target is not None or tolerance is None else TOLERANCE_MARGIN * tolerance,
+            norm=norm, order=order,
             gradation=gradation, h_min=h_min, h_max=h_max, smoothing=smoothing,
         )
 
