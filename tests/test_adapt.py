@@ -455,6 +455,26 @@ def test_adapt_meets_targets_around_interior_points():
     assert result.mesh.quality().min() >= 0.6
 
 
+def test_a_mesh_far_from_its_target_is_reported(monkeypatch):
+    """When the mesher does not follow h (simulated: it ignores it), adapt retries, then warns."""
+    real = adapt.generate
+    calls = []
+
+    def ignore_size(domain, size, **options):
+        calls.append(size)
+        return real(domain, 0.1, **options)
+
+    monkeypatch.setattr(adapt, "generate", ignore_size)
+
+    def solve(mesh):
+        return np.ones(mesh.n_triangles)
+
+    with pytest.warns(injmesh.ConvergenceWarning, match=r"nodes for target_nodes=400 \(-\d+ %\)"):
+        result = adapt.adapt(SQUARE, solve, 0.1, steps=1, target_nodes=400)
+    assert len(calls) == 3  # first mesh, the remesh, the retry
+    assert result.nodes[1] < 0.8 * 400
+
+
 def test_adapt_stops_at_the_tolerance():
     def solve(mesh):
         c = centroids(mesh)

@@ -1060,8 +1060,10 @@ def adapt(
 
     The first mesh follows ``size``; each next one follows :func:`size_from_indicator` of the
     indicator ``solve`` returned (or :func:`size_from_solution` of its field when it returned
-    ``(u, None)``).  ``solve`` runs on every mesh, the last included, so every step reports its
-    error.  Boundary tags keep the numbering of the first mesh.
+    ``(u, None)``).  A mesh that misses its target by more than 5 % is made once more with the
+    target rescaled by the miss, and the closer of the two is kept.  ``solve`` runs on every
+    mesh, the last included, so every step reports its error.  Boundary tags keep the numbering
+    of the first mesh.
 
     Parameters
     ----------
@@ -1099,6 +1101,12 @@ def adapt(
         ``solve`` raised (the message names the step and the mesh; the original is chained).
     AdaptError
         ``solve`` returned something malformed, or a bad option or target.
+
+    Warns
+    -----
+    ConvergenceWarning
+        A mesh misses its ``target_nodes`` by more than 10 % even after the retry (the mesher
+        did not follow the size function), or a boundary loop was lost between meshes.
 
     Examples
     --------
@@ -1184,6 +1192,14 @@ def adapt(
                         k + 1, new.n_points, target, retry.n_points)
             if abs(retry.n_points - target) < abs(new.n_points - target):
                 new = retry
+            if abs(new.n_points / target - 1) > 2 * RETRY_MISS:
+                warnings.warn(
+                    f"adapt step {k + 1}: the mesh has {new.n_points} nodes for target_nodes="
+                    f"{target:.0f} ({100 * (new.n_points / target - 1):+.0f} %): the mesher does not "
+                    "follow this size function closely (see the mesh's size_report())",
+                    ConvergenceWarning,
+                    stacklevel=2,
+                )
         mesh = _loop_tags(reference, new)
     return AdaptResult(tuple(history))
 
