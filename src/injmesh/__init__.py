@@ -47,6 +47,16 @@ except PackageNotFoundError:  # running from a source tree without installation
     __version__ = "0+unknown"
 
 
+def __getattr__(name: str) -> Any:
+    # ``injmesh.adapt`` without an explicit import, loaded on first use: it pulls in SciPy's
+    # graph and optimisation modules, which ``import injmesh`` should not pay for.
+    if name == "adapt":
+        import importlib
+
+        return importlib.import_module(".adapt", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def read(path: str | Path) -> Mesh:
     """Read a triangular mesh from any file meshio reads, or from injmesh's ``.npz``."""
     from .io import read as _read
