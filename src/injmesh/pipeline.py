@@ -13,12 +13,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from .boundary import BoundaryMesh, mesh_boundary
 from .errors import ConvergenceWarning, MeshError
-from .geometry import Domain, as_domain
+from .geometry import Domain, GeometryError, as_domain
 from .geometry.base import as_points
+from .geometry.tracing import grid_spacing
 from .injection import inject_nodes
 from .mesh import Mesh, MeshStats
 from .progress import Callback
-from .sizing import SizeLike, as_size_function
+from .sizing import SizeFunction, SizeLike, as_size_function, effective_size
 from .smoothing import Smoothing, smooth
 from .triangulation import boundary_edges
 from .validate import mesh_defects
@@ -29,7 +30,7 @@ DEFAULT_MAX_NODES = 5_000_000
 
 
 def generate(
-    domain: Domain | Callable[[FloatArray], FloatArray],
+    domain: Domain | Callable[[FloatArray], FloatArray] | object,
     size: SizeLike,
     *,
     method: Literal["injection", "distmesh"] = "injection",
@@ -40,6 +41,8 @@ def generate(
     smoothing: Smoothing = "hybrid",
     h0: float | None = None,
     seed: int | None = None,
+    feature_layers: float | None = 2.0,
+    gradation: float | None = 0.2,
     strict: bool = True,
     callback: Callback | None = None,
 ) -> Mesh:
@@ -52,11 +55,15 @@ def generate(
 
     Parameters
     ----------
-    domain : Domain or callable
-        A :class:`~injmesh.geometry.Domain` or a plain signed distance ``d(p) -> (n,)``
-        (negative inside) for ``p`` of shape ``(n, 2)``; a callable needs ``bbox``.
-    size : float or callable
-        Target edge length: a number, or ``h(p) -> (n,)``, positive, in domain units.
+    domain : Domain, callable or shape
+        A :class:`~injmesh.geometry.Domain`, a plain signed distance ``d(p) -> (n,)``
+        (negative inside) for ``p`` of shape ``(n, 2)`` (a callable needs ``bbox``), or a shape
+        :func:`~injmesh.geometry.as_domain` reads: a shapely geometry or anything with
+        ``__geo_interface__``, a GeoJSON dict, WKT text, an ``(n, 2)`` array of vertices.
+    size : float, callable or str
+        Target edge length: a number, ``h(p) -> (n,)``, positive, in domain units, or a safe
+        expression in ``x`` and ``y`` (``"0.02 + 0.1*x"``).  h is asked only at points inside
+        the domain or on its boundary.
     method : {"injection", "distmesh"}
         The algorithm.
     bbox : (xmin, ymin, xmax, ymax), optional
@@ -77,6 +84,17 @@ def generate(
         DistMesh only: the spacing of its initial grid (default: the smallest h on the domain).
     seed : int, optional
         DistMesh only: seed of its random rejection step.
+    feature_layers : float or None
+        Injection only.  Where the domain is thinner than ``feature_layers`` elements of size h
+        (straits, channels, a hole close to the boundary, a spike), the size becomes
+        ``feature_size / feature_layers`` (:func:`injmesh.sizing.feature_size`, the local
+        thickness), so thin parts get small well-shaped triangles rather than slivers.  None
+        turns it off.
+    gradation : float or None
+        Injection only.  The size actually followed grows by at most this much per unit length
+        (|grad h| <= gradation, :func:`injmesh.sizing.limit_gradation`): a size that jumps still
+        gives well-shaped triangles.  None turns it off.  When neither correction changes h
+        anywhere, h itself is followed; ``mesh.size`` is the size followed.
     strict : bool
         The mesh is checked before it is returned (:mod:`injmesh.validate`: no duplicate or
         unused node, no flat or inverted triangle, every boundary segment a boundary edge, every
@@ -127,7 +145,9 @@ def generate(
             raise ValueError("h0 and seed apply to method='distmesh' only")
         if smoothing not in ("hybrid", "attractive"):
             raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
-        mesh = _injection(dom, h, fixed, max_iterations, int(max_nodes), smoothing, callback)
+        target, follow = _target_size(dom, h, feature_layers, gradation)
+        mesh = _injection(dom, follow, fixed, max_iterations, int(max_nodes), smoothing, callback)
+        mesh = replace(mesh, size=target)
     else:
         raise ValueError(f"method must be 'injection' or 'distmesh', got {method!r}")
     if not mesh.stats.converged:
@@ -148,12 +168,14 @@ def generate(
 
 
 def initial_nodes(
-    domain: Domain | Callable[[FloatArray], FloatArray],
+    domain: Domain | Callable[[FloatArray], FloatArray] | object,
     size: SizeLike,
     *,
     bbox: ArrayLike | None = None,
     fixed_points: ArrayLike | None = None,
     max_nodes: int = DEFAULT_MAX_NODES,
+    feature_layers: float | None = 2.0,
+    gradation: float | None = 0.2,
 ) -> FloatArray:
     """The nodes of Steps 1 and 2 (boundary meshing and Advancing Node Injection), unsmoothed.
 
@@ -173,7 +195,7 @@ def initial_nodes(
     2
     """
     dom = as_domain(domain, bbox=bbox, fixed_points=fixed_points)
-    h = as_size_function(size)
+    _, h = _target_size(dom, as_size_function(size), feature_layers, gradation)
     fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
     bnd, seeds, injected = _place_nodes(dom, h, fixed, max_nodes, None)
     return np.concatenate([seeds, injected])
@@ -286,3 +308,30 @@ def _capped(h: Callable[[FloatArray], FloatArray], cap: float) -> Callable[[Floa
         return np.minimum(h(p), cap)
 
     return capped
+
+
+def _target_size(
+    domain: Domain, h: SizeFunction, feature_layers: float | None, gradation: float | None
+) -> tuple[SizeFunction, Callable[[FloatArray], FloatArray]]:
+    """The size the mesh is made for, and the callable the stages evaluate.
+
+    :func:`~injmesh.sizing.effective_size` lowers h where the domain is thin and limits its
+    gradation on a background grid.  When it changes nothing it returns h restricted to the
+    domain (evaluated only inside, one sdf call per evaluation); the stages then call h itself,
+    capped at the diameter, and ask it only inside (see injection and boundary), which saves
+    that sdf call at every smoothing step.
+    """
+    if feature_layers is None and gradation is None:
+        target = h.restricted(domain)
+    else:
+        try:
+            target = effective_size(h, domain, layers=feature_layers if feature_layers is not None
+                                    else np.inf, rate=gradation)
+        except GeometryError:
+            # The background grid saw no boundary: let the domain's own check say why (empty,
+            # or spilling out of its bbox), else report what the grid found.
+            domain.boundary_loops(grid_spacing(domain.bbox, np.inf))
+            raise
+    if target.domain is not None and target.function is h.function:
+        return target, _capped(h, domain.diameter)
+    return target, target

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import _tolerances as tol
-from ..geometry import Domain
+from ..geometry import Domain, GeometryError
 from ._core import SizeError, SizeFunction
 
 FloatArray = NDArray[np.float64]
@@ -195,7 +195,7 @@ def probe_min(h: SizeFunction, domain: Domain) -> float:
     except ValueError:  # a domain whose boundary cannot be traced at this scale: nodes suffice
         pass
     if not pts:
-        raise SizeError("the domain has neither a node of the probe grid inside nor a boundary curve")
+        raise GeometryError("the domain is empty: no node of the probe grid inside, no boundary curve")
     p = np.concatenate(pts)
     return float(h.restricted(domain)(p).min())
 

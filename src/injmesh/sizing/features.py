@@ -43,7 +43,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..geometry import Circle, Domain, Polygon, as_domain
+from ..geometry import Circle, Domain, GeometryError, Polygon, as_domain
 from ._core import SizeError, SizeFunction, SizeLike, as_size_function
 from .background import (
     DEFAULT_MAX_CELLS,
@@ -112,7 +112,7 @@ def _boundary(domain: Domain, grid: Background) -> tuple[FloatArray, FloatArray,
         prev.append(offset + (np.arange(len(dense)) - 1) % len(dense))
         offset += len(dense)
     if not a:
-        raise SizeError("the domain has no boundary curve at the background grid's resolution")
+        raise GeometryError("the domain has no boundary curve at the background grid's resolution")
     return np.concatenate(a), np.concatenate(b), np.concatenate(prev)
 
 
