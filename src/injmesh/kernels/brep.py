@@ -264,7 +264,7 @@ def nearest_point(x, y, hint, g, stack, tie_j, tie_w):  # type: ignore[no-untype
     ``_STACK``, ``_TIES``, ``_TIES``.  Returns the signed distance (negative inside), the foot,
     the piece and the leaf slot (the hint for the next point).
     """
-    p0, p1, c, r, a0, sw, prv, nxt = g[0], g[1], g[2], g[3], g[4], g[5], g[6], g[7]
+    p0, p1, c, r, sw, prv, nxt = g[0], g[1], g[2], g[3], g[5], g[6], g[7]
     node_lo, node_hi, child, start, count, order = g[8], g[9], g[10], g[11], g[12], g[13]
     lp0, lp1, lc, lr, la0, lsw = g[14], g[15], g[16], g[17], g[18], g[19]
     best = np.inf
