@@ -191,3 +191,46 @@ def test_grid_rectangles_with_shared_edges(a, b) -> None:
 @given(a=stars(), b=stars())
 def test_random_polygons(a, b) -> None:
     _check_operation(a, b)
+
+
+@st.composite
+def grid_shapes(draw):
+    """Circles and rectangles on a half-unit grid: tangent circles, circles tangent to
+    rectangle edges, and arcs through rectangle corners are common."""
+    if draw(st.booleans()):
+        cx, cy = draw(st.integers(0, 6)) / 2, draw(st.integers(0, 6)) / 2
+        return Circle((cx, cy), draw(st.sampled_from([0.5, 1.0, 1.5])))
+    return draw(grid_rectangles())
+
+
+def _check_areas_and_signs(a, b) -> None:
+    rng = np.random.default_rng(0)
+    q = rng.uniform(-1.6, 4.6, (1500, 2))
+    in_a, in_b = a.sdf(q) < 0, b.sdf(q) < 0
+    areas = {}
+    ops = (("|", a | b, in_a | in_b), ("&", a & b, in_a & in_b), ("-", a - b, in_a & ~in_b))
+    for name, combo, member in ops:
+        brep = combo.exact_brep()
+        if brep is None:
+            assert not member.any()
+            areas[name] = 0.0
+            continue
+        areas[name] = brep.area
+        d = combo.sdf(q)
+        # |d| is the distance to the boundary, sampled finely (chords within 1e-6 of the arcs).
+        loops = combo.boundary_loops(0.002)
+        s0 = np.concatenate(loops)
+        s1 = np.concatenate([np.roll(lp, -1, axis=0) for lp in loops])
+        dist = _distance_to_segments(s0, s1, q)
+        assert np.abs(np.abs(d) - dist).max() < 1e-6
+        clear = dist > 1e-6
+        assert np.array_equal((d < 0)[clear], member[clear])
+        assert np.abs(combo.sdf(combo.project(q))).max() < 1e-12
+    assert areas["|"] + areas["&"] == pytest.approx(a.area + b.area, abs=1e-9)
+    assert areas["-"] == pytest.approx(a.area - areas["&"], abs=1e-9)
+
+
+@SETTINGS
+@given(a=grid_shapes(), b=grid_shapes())
+def test_grid_circles_and_rectangles_tangent_and_touching(a, b) -> None:
+    _check_areas_and_signs(a, b)
