@@ -294,3 +294,27 @@ def test_simplicity_sweep_matches_brute_force_on_a_grid(rings) -> None:
     except GeometryError:
         found = False
     assert found == expected
+
+
+def test_compiled_callers_query_through_kernel_data() -> None:
+    """Kernels of other stages can query the boundary per point from inside their own loops."""
+    import numba
+
+    from injmesh.kernels import brep as kb
+
+    @numba.njit
+    def signed_distances(q, g):  # type: ignore[no-untyped-def]
+        stack = np.empty(kb._STACK, dtype=np.int64)
+        tie_j = np.empty(kb._TIES, dtype=np.int64)
+        tie_w = np.empty(kb._TIES, dtype=np.int64)
+        out = np.empty(len(q))
+        hint = -1
+        for i in range(len(q)):
+            d, _, _, _, hint = kb.nearest_point(q[i, 0], q[i, 1], hint, g, stack, tie_j, tie_w)
+            out[i] = d
+        return out
+
+    dom = Polygon(_star(np.random.default_rng(13), 50), holes=[0.1 * _star(np.random.default_rng(14), 5)])
+    q = np.random.default_rng(15).uniform(-1.2, 1.2, (1000, 2))
+    origin, g = dom.kernel_data()
+    assert np.array_equal(signed_distances(q - origin, g), dom.sdf(q))

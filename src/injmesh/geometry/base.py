@@ -161,6 +161,13 @@ class Domain(ABC):
         -------
         (Domain, dict)
             The cleaned domain and counts of the changes (empty when nothing applies).
+
+        Examples
+        --------
+        >>> from injmesh import Polygon
+        >>> p = Polygon([(0, 0), (1, 0), (1.0000005, 0.0000006), (0.6, 1), (0, 1)])
+        >>> p.cleaned(1e-5)[1]["merged_vertices"]
+        1
         """
         return self, {}
 

@@ -51,6 +51,15 @@ class BRep(Domain):
     origin : (2,) array, optional
         The reference point subtracted from all coordinates (default: the centre of the pieces'
         box).
+
+    Examples
+    --------
+    >>> from injmesh import Circle, Rectangle
+    >>> b = (Rectangle((0, 0), (2, 2)) - Circle((2, 2), 1)).exact_brep()
+    >>> b
+    BRep(<1 loops, 4 segments, 1 arcs>)
+    >>> b.sdf([[1.0, 0.5]]), b.corners().round(3).tolist()
+    (array([-0.5]), [[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [1.0, 2.0], [0.0, 2.0]])
     """
 
     exact_distance = True

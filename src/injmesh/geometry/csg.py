@@ -46,7 +46,15 @@ class _Combination(Domain):
 
     def exact_brep(self) -> BRep | None:
         """The exact boundary of the result when every operand is a B-rep (computed once),
-        else None."""
+        else None.
+
+        Examples
+        --------
+        >>> from injmesh import Rectangle
+        >>> ell = Rectangle((-1, -1), (1, 1)) - Rectangle((0, -1), (1, 0))
+        >>> ell.exact_brep(), len(ell.corners())
+        (BRep(<1 loops, 6 segments, 0 arcs>), 6)
+        """
         if self._exact is _UNSET:
             from .boolean import boolean_brep
 
