@@ -304,7 +304,7 @@ def test_compiled_callers_query_through_kernel_data() -> None:
 
     @numba.njit
     def signed_distances(q, g):  # type: ignore[no-untyped-def]
-        stack = np.empty(kb._STACK, dtype=np.int64)
+        stack = np.empty(2 * kb._STACK)
         tie_j = np.empty(kb._TIES, dtype=np.int64)
         tie_w = np.empty(kb._TIES, dtype=np.int64)
         out = np.empty(len(q))

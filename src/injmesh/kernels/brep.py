@@ -260,9 +260,10 @@ def nearest_point(x, y, hint, g, stack, tie_j, tie_w):  # type: ignore[no-untype
     """Nearest boundary point of ``(x, y)`` (local coordinates) for compiled callers.
 
     ``g`` is :meth:`BRep.kernel_data`'s tuple; ``hint`` a leaf slot to try first (the answer
-    for a nearby point, or -1); ``stack``, ``tie_j``, ``tie_w`` are work arrays of sizes
-    ``_STACK``, ``_TIES``, ``_TIES``.  Returns the signed distance (negative inside), the foot,
-    the piece and the leaf slot (the hint for the next point).
+    for a nearby point, or -1); ``stack`` a float work array of size ``2 * _STACK`` (node and
+    box distance), ``tie_j``, ``tie_w`` int work arrays of size ``_TIES``.  Returns the signed
+    distance (negative inside), the foot, the piece and the leaf slot (the hint for the next
+    point).
     """
     p0, p1, c, r, sw, prv, nxt = g[0], g[1], g[2], g[3], g[5], g[6], g[7]
     node_lo, node_hi, child, start, count, order = g[8], g[9], g[10], g[11], g[12], g[13]
@@ -276,13 +277,14 @@ def nearest_point(x, y, hint, g, stack, tie_j, tie_w):  # type: ignore[no-untype
         best, bj, fx, fy = d2, hint, gx, gy
         tie_j[0], tie_w[0] = hint, where
         nties = 1
-    stack[0] = 0
+    stack[0] = 0.0
+    stack[1] = 0.0
     sp = 1
     while sp > 0:
         sp -= 1
-        node = stack[sp]
-        if _box_d2(node_lo, node_hi, node, x, y) > best:
+        if stack[2 * sp + 1] > best:
             continue  # best has improved since this node was pushed
+        node = int(stack[2 * sp])
         ch = child[node]
         if ch < 0:
             for j in range(start[node], start[node] + count[node]):
@@ -302,17 +304,17 @@ def nearest_point(x, y, hint, g, stack, tie_j, tie_w):  # type: ignore[no-untype
         # Push the farther child first so the nearer one is searched first.
         if dl <= dr:
             if dr <= best:
-                stack[sp] = ch + 1
+                stack[2 * sp], stack[2 * sp + 1] = ch + 1, dr
                 sp += 1
             if dl <= best:
-                stack[sp] = ch
+                stack[2 * sp], stack[2 * sp + 1] = ch, dl
                 sp += 1
         else:
             if dl <= best:
-                stack[sp] = ch
+                stack[2 * sp], stack[2 * sp + 1] = ch, dl
                 sp += 1
             if dr <= best:
-                stack[sp] = ch + 1
+                stack[2 * sp], stack[2 * sp + 1] = ch + 1, dr
                 sp += 1
     # Ties at the nearest distance: the same vertex reached from two pieces, or several loops
     # through one point (operands touching there): inside any wedge is inside.
@@ -337,7 +339,7 @@ def nearest(q, g):  # type: ignore[no-untyped-def]
     dist = np.empty(n)
     foot = np.empty((n, 2))
     piece = np.empty(n, dtype=np.int64)
-    stack = np.empty(_STACK, dtype=np.int64)
+    stack = np.empty(2 * _STACK)
     tie_j = np.empty(_TIES, dtype=np.int64)
     tie_w = np.empty(_TIES, dtype=np.int64)
     last = -1
