@@ -80,7 +80,7 @@ def test_bad_callables(size, match: str) -> None:
         injmesh.generate(DISC, size)
 
 
-@pytest.mark.parametrize("size", ["0.1", None, [0.1], True])
+@pytest.mark.parametrize("size", [b"0.1", None, [0.1], True])  # a str is an expression
 def test_bad_types(size) -> None:
     with pytest.raises(TypeError, match="size must be"):
         as_size_function(size)

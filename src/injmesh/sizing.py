@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
-SizeLike = float | int | Callable[[FloatArray], FloatArray]
+SizeLike = float | int | str | Callable[[FloatArray], FloatArray]
 
 
 class SizeError(ValueError):
@@ -63,8 +63,9 @@ def as_size_function(size: SizeLike) -> SizeFunction:
 
     Parameters
     ----------
-    size : float or callable
-        A positive edge length, or ``h(p) -> (n,)`` for ``p`` of shape ``(n, 2)``.
+    size : float or callable or str
+        A positive edge length, ``h(p) -> (n,)`` for ``p`` of shape ``(n, 2)``, or an expression
+        in ``x`` and ``y`` (see :func:`injmesh.size_expression`).
 
     Raises
     ------
@@ -82,6 +83,10 @@ def as_size_function(size: SizeLike) -> SizeFunction:
     """
     if isinstance(size, SizeFunction):
         return size
+    if isinstance(size, str):  # the same safe expressions as the command line's --size
+        from .expression import parse_size
+
+        size = parse_size(size)
     if isinstance(size, (bool, np.bool_)):
         raise TypeError("size must be a positive number or a callable h(p), not a bool")
     if isinstance(size, (int, float, np.integer, np.floating)):
