@@ -53,6 +53,9 @@ class MeshStats:
         What failed those checks, and where.
     unsettled : (x, y) or None
         Where smoothing was still moving most when it stopped (useful when not converged).
+    cleaning : dict
+        What cleaning the geometry at the scale of h changed (``merged_vertices``, ``spikes``,
+        ...: counts), empty when nothing.
     """
 
     method: str = "injection"
@@ -65,6 +68,7 @@ class MeshStats:
     valid: bool = True
     defects: tuple[Defect, ...] = ()
     unsettled: tuple[float, float] | None = None
+    cleaning: dict[str, int] = field(default_factory=dict)
 
     @property
     def total_seconds(self) -> float:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import time
 import warnings
 from collections.abc import Callable
@@ -11,7 +12,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .boundary import BoundaryMesh, mesh_boundary
+from .boundary import BoundaryMesh, estimate_nodes, mesh_boundary
 from .errors import ConvergenceWarning, MeshError
 from .geometry import Domain, GeometryError, as_domain
 from .geometry.base import as_points
@@ -27,6 +28,11 @@ from .validate import mesh_defects
 FloatArray = NDArray[np.float64]
 
 DEFAULT_MAX_NODES = 5_000_000
+
+#: Geometry is cleaned at this fraction of the smallest h (see ``_clean``).
+CLEAN = 0.01
+
+logger = logging.getLogger(__name__)
 
 
 def generate(
@@ -145,9 +151,10 @@ def generate(
             raise ValueError("h0 and seed apply to method='distmesh' only")
         if smoothing not in ("hybrid", "attractive"):
             raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
+        dom, cleaning = _clean(dom, h)
         target, follow = _target_size(dom, h, feature_layers, gradation)
         mesh = _injection(dom, follow, fixed, max_iterations, int(max_nodes), smoothing, callback)
-        mesh = replace(mesh, size=target)
+        mesh = replace(mesh, size=target, stats=replace(mesh.stats, cleaning=cleaning))
     else:
         raise ValueError(f"method must be 'injection' or 'distmesh', got {method!r}")
     if not mesh.stats.converged:
@@ -195,6 +202,7 @@ def initial_nodes(
     2
     """
     dom = as_domain(domain, bbox=bbox, fixed_points=fixed_points)
+    dom, _ = _clean(dom, as_size_function(size))
     _, h = _target_size(dom, as_size_function(size), feature_layers, gradation)
     fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
     bnd, seeds, injected = _place_nodes(dom, h, fixed, max_nodes, None)
@@ -308,6 +316,22 @@ def _capped(h: Callable[[FloatArray], FloatArray], cap: float) -> Callable[[Floa
         return np.minimum(h(p), cap)
 
     return capped
+
+
+def _clean(domain: Domain, h: SizeFunction) -> tuple[Domain, dict[str, int]]:
+    """The domain cleaned at the scale of h: vertices closer than ``CLEAN * h_min`` merged,
+    zero-length edges and spikes dropped (``Domain.cleaned``), and what changed.
+
+    GIS outlines carry vertices 1e-7 apart; meshed as given they make a duplicate node and a
+    triangle of zero area.  Changes are logged and kept in ``mesh.stats.cleaning``.
+    """
+    h_min, _ = estimate_nodes(domain, h.restricted(domain))
+    cleaned, report = domain.cleaned(CLEAN * h_min)
+    changes = {k: int(v) for k, v in report.items() if v}
+    if changes:
+        logger.info("geometry cleaned at %.3g: %s", CLEAN * h_min,
+                    ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in changes.items()))
+    return cleaned, changes
 
 
 def _target_size(
