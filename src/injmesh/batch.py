@@ -1081,29 +1081,78 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-@contextlib.contextmanager
-def _stop_on_sigterm() -> Iterator[list[str]]:
-    """Turn SIGTERM into KeyboardInterrupt for the duration of a batch (main thread only, and
-    only if nobody else handles SIGTERM); yields a list that receives the signal's name."""
-    received: list[str] = []
-    if threading.current_thread() is not threading.main_thread() or \
-            signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
-        yield received
-        return
+class _StopSignals:
+    """Ctrl-C and SIGTERM stop a batch cleanly, as a KeyboardInterrupt in the main thread.
 
-    def handler(signum: int, frame: Any) -> None:
-        received.append("SIGTERM")
+    SIGTERM is turned into KeyboardInterrupt for the duration of the batch (main thread only,
+    and only when nobody else handles SIGTERM).  While a cluster starts, both signals are held
+    back and delivered once it exists, so that it can always be closed: interrupting
+    ``LocalCluster()`` half-way leaves processes behind.
+    """
+
+    def __init__(self) -> None:
+        self.received: str | None = None
+        self._holding = False
+        self._pending = False
+        self._installed = False
+        self._main = threading.current_thread() is threading.main_thread()
+
+    def __enter__(self) -> _StopSignals:
+        if self._main and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+            signal.signal(signal.SIGTERM, self._on_sigterm)
+            self._installed = True
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._installed:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+    def _on_sigterm(self, signum: int, frame: Any) -> None:
+        self.received = "SIGTERM"
+        if self._holding:
+            self._pending = True
+            return
         raise KeyboardInterrupt("SIGTERM")
 
-    signal.signal(signal.SIGTERM, handler)
-    try:
-        yield received
-    finally:
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    @contextlib.contextmanager
+    def hold(self) -> Iterator[None]:
+        """Hold SIGINT and SIGTERM back during the block (SIGINT by blocking it)."""
+        if not self._main:
+            yield
+            return
+        can_block = hasattr(signal, "pthread_sigmask")
+        previous: Any = None
+        if can_block:
+            previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        else:  # no signal masks (Windows): ignore Ctrl-C while the cluster starts
+            previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        self._holding = True
+        try:
+            yield
+        finally:
+            self._holding = False
+            if can_block:
+                signal.pthread_sigmask(signal.SIG_SETMASK, previous)  # a held Ctrl-C lands here
+            else:
+                signal.signal(signal.SIGINT, previous)
+            if self._pending:
+                self._pending = False
+                raise KeyboardInterrupt("SIGTERM")
+
+
+# Run by each worker process of our LocalCluster before it starts.  Ctrl-C in a terminal reaches
+# the whole process group; only the client should react to it (by stopping the batch cleanly),
+# not the workers (by dying with a traceback).
+_WORKER_PRELOAD = """
+import signal, threading
+def dask_setup(worker):
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+"""
 
 
 @contextlib.contextmanager
-def _cluster(client: Any, workers: int | None) -> Iterator[Any]:
+def _cluster(client: Any, workers: int | None, signals: _StopSignals) -> Iterator[Any]:
     """The Dask client to use: the caller's, one connected to an address, or a new LocalCluster."""
     try:
         import distributed
@@ -1120,25 +1169,18 @@ def _cluster(client: Any, workers: int | None) -> Iterator[Any]:
         raise TypeError(f"client must be a dask.distributed.Client or a scheduler address, not "
                         f"{type(client).__name__}")
     n = default_workers() if workers is None else workers
-    # The workers ignore SIGINT (inherited through spawn): Ctrl-C in a terminal reaches the whole
-    # process group, and only this process should react to it, by stopping the batch cleanly.
-    main = threading.current_thread() is threading.main_thread()
-    previous = signal.getsignal(signal.SIGINT) if main else None
-    if previous is not None:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    cluster = None
     try:
-        cluster = distributed.LocalCluster(
-            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-            silence_logs=logging.ERROR,
-        )
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGINT, previous)
-    try:
+        with signals.hold():
+            cluster = distributed.LocalCluster(
+                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                silence_logs=logging.CRITICAL, preload=[_WORKER_PRELOAD],
+            )
         with distributed.Client(cluster) as own:
             yield own
     finally:
-        cluster.close()
+        if cluster is not None:
+            cluster.close()
 
 
 def mesh_many(
@@ -1264,16 +1306,16 @@ def mesh_many(
     if callback is not None and done:
         callback(Progress("batch", done, total, {"name": "", "status": "reused"}))
     interrupted: str | None = None
-    with _stop_on_sigterm() as received:
+    with _StopSignals() as signals:
         try:
             if tasks and workers == 0:
                 for task in tasks:
                     finish(run_task(task))
             elif tasks:
-                with _cluster(client, workers) as dask_client:
+                with _cluster(client, workers, signals) as dask_client:
                     _run_on_dask(dask_client, tasks, finish)
         except KeyboardInterrupt:
-            interrupted = received[0] if received else "SIGINT"
+            interrupted = signals.received or "SIGINT"
         finally:
             _write_summary(summary_path, ordered())
     summary = BatchSummary(tuple(ordered()), total, summary_path, time.perf_counter() - start,
