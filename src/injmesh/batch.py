@@ -7,7 +7,7 @@ A batch is a list of *specs*, one mesh each, usually a JSON Lines file (one JSON
     {"name": "wing", "domain": "shapes/wing.geojson", "size": "0.01 + 0.05*hypot(x, y)"}
     {"name": "plate-7", "domain": {"type": "Polygon", "coordinates": [[[0, 0], [2, 0], [2, 1]]]},
      "nodes": 300}
-    {"name": "plates-s0-00012", "domain": {"family": "plates", "seed": 0, "index": 12}}
+    {"name": "plates-000012", "domain": {"family": "plates", "seed": 12}}
 
 =========  ================================================================================
 field      meaning
@@ -16,8 +16,9 @@ name       required; the output is ``OUT/<name>.<format>``.  Letters, digits, ``
            starting with ``.``; unique (ignoring case).
 domain     required; a paper case (``unit_disc``, ...), a GeoJSON geometry (an object with a
            ``"type"``), WKT text (``POLYGON ((...))``), a path to a ``.geojson``/``.json``/
-           ``.wkt``/``.poly`` file (relative to the specs file), or a member of a random family
-           ``{"family": "plates", "seed": 0, "index": 12}`` (see :func:`random_specs`).
+           ``.wkt``/``.poly`` file (relative to the specs file), or a random shape
+           ``{"family": "plates", "seed": 12}`` (optionally with ``"params"``; see
+           :func:`random_specs` and :mod:`injmesh.shapes`).
 size       the target edge length h: a number, an expression in ``x`` and ``y`` (see
            :func:`injmesh.inputs.parse_size`), a case name (that case's h) or a path to a text
            file holding a number or an expression.  Optional for cases and families, which
@@ -65,6 +66,7 @@ import contextlib
 import csv
 import hashlib
 import importlib.util
+import inspect
 import io
 import json
 import logging
@@ -86,6 +88,7 @@ import numpy as np
 
 from .geometry import Domain
 from .progress import Callback, Progress
+from .shapes import FAMILIES as SHAPE_FAMILIES
 
 logger = logging.getLogger(__name__)
 
@@ -284,13 +287,15 @@ def _check_domain_object(domain: dict[str, Any]) -> None:
         family = domain["family"]
         if family not in FAMILIES:
             raise _Invalid("domain", f"unknown family {family!r}; choose one of {', '.join(FAMILIES)}")
-        extra = set(domain) - {"family", "seed", "index"}
+        extra = set(domain) - {"family", "seed", "params"}
         if extra:
-            raise _Invalid("domain", f"a family member has 'family', 'seed' and 'index', not {sorted(extra)}")
-        for key in ("seed", "index"):
-            v = domain.get(key)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                raise _Invalid("domain", f"a family member's {key!r} must be a whole number >= 0, got {v!r}")
+            raise _Invalid("domain", f"a family member has 'family', 'seed' and 'params', not "
+                           f"{', '.join(map(repr, sorted(extra)))}")
+        seed = domain.get("seed")
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise _Invalid("domain", f"a family member's 'seed' must be a whole number >= 0, got {seed!r}")
+        if "params" in domain:
+            _check_params(family, domain["params"])
         return
     kind = domain.get("type")
     kinds = ("Polygon", "MultiPolygon", "Feature", "FeatureCollection", "GeometryCollection")
@@ -527,154 +532,113 @@ def size_for_nodes(domain: Domain, nodes: int) -> float:
 # --- random families --------------------------------------------------------------------------
 
 
-def _family_rng(family: str, seed: int, index: int) -> np.random.Generator:
-    # One stream per (family, seed, index): member i is the same whatever the count, so a batch
-    # grown from 1000 to 10000 members keeps (and skips) its first 1000.
-    tag = int.from_bytes(hashlib.sha256(family.encode()).digest()[:4], "little")
-    return np.random.default_rng([tag, seed, index])
-
-
-def _plate(rng: np.random.Generator) -> tuple[Domain, float]:
-    """A rectangular plate with 1-4 circular holes that neither touch each other nor the edge."""
-    from .geometry import Circle, Rectangle
-
-    width = float(rng.uniform(1.5, 3.0))
-    plate: Domain = Rectangle((0.0, 0.0), (width, 1.0))
-    h = 0.08
-    holes: list[tuple[float, float, float]] = []
-    for _ in range(int(rng.integers(1, 5))):
-        for _attempt in range(50):
-            r = float(rng.uniform(0.08, 0.25))
-            margin = r + 2 * h
-            cx = float(rng.uniform(margin, width - margin))
-            cy = float(rng.uniform(margin, 1 - margin))
-            if all(math.hypot(cx - x, cy - y) > r + s + 2 * h for x, y, s in holes):
-                holes.append((cx, cy, r))
-                break
-    for cx, cy, r in holes:
-        plate = plate - Circle((cx, cy), r)
-    return plate, h
-
-
-def _star_polygon(rng: np.random.Generator, n: int, centre: tuple[float, float], radius: float,
-                  roughness: float) -> np.ndarray:
-    angles = np.sort(rng.uniform(0, 2 * np.pi, n))
-    # Keep neighbouring vertices apart in angle so no edge is much shorter than h.
-    angles = np.linspace(0, 2 * np.pi, n, endpoint=False) * 0.5 + angles * 0.5
-    r = radius * (1 + roughness * rng.uniform(-1, 1, n))
-    return np.column_stack([centre[0] + r * np.cos(angles), centre[1] + r * np.sin(angles)])
-
-
-def _polygon(rng: np.random.Generator) -> tuple[Domain, float]:
-    """A random star-shaped polygon of 6-16 vertices with 0-2 star-shaped holes."""
-    from .geometry import Polygon
-
-    outline = _star_polygon(rng, int(rng.integers(6, 17)), (0.0, 0.0), 1.0, 0.35)
-    shape: Domain = Polygon(outline)
-    h = 0.1
-    placed: list[tuple[float, float, float]] = []
-    for _ in range(int(rng.integers(0, 3))):
-        for _attempt in range(50):
-            r = float(rng.uniform(0.12, 0.22))
-            c = (float(rng.uniform(-0.45, 0.45)), float(rng.uniform(-0.45, 0.45)))
-            if all(math.hypot(c[0] - x, c[1] - y) > 1.5 * (r + s) + 2 * h for x, y, s in placed):
-                placed.append((c[0], c[1], r))
-                shape = shape - Polygon(_star_polygon(rng, int(rng.integers(5, 9)), c, r, 0.2))
-                break
-    return shape, h
-
-
-def _airfoil(rng: np.random.Generator) -> tuple[Domain, float]:
-    """A NACA 4-digit profile (camber 0-6 %, thickness 8-20 %) in a 4 x 2 box, graded toward it."""
-    from .geometry import Polygon, Rectangle
-
-    m, p, t = float(rng.uniform(0, 0.06)), float(rng.uniform(0.3, 0.5)), float(rng.uniform(0.08, 0.2))
-    alpha = float(np.radians(rng.uniform(-8, 8)))
-    beta = np.linspace(0, np.pi, 41)
-    x = 0.5 * (1 - np.cos(beta))  # cosine spacing: dense at both ends of the chord
-    yt = 5 * t * (0.2969 * np.sqrt(x) - 0.1260 * x - 0.3516 * x**2 + 0.2843 * x**3 - 0.1036 * x**4)
-    yc = np.where(x < p, m / p**2 * (2 * p * x - x**2), m / (1 - p) ** 2 * (1 - 2 * p + 2 * p * x - x**2))
-    upper = np.column_stack([x, yc + yt])[::-1]
-    lower = np.column_stack([x, yc - yt])[1:-1]
-    foil = np.concatenate([upper, lower]) - [0.5, 0.0]
-    c, s = math.cos(alpha), math.sin(alpha)
-    foil = foil @ np.array([[c, -s], [s, c]]).T
-    return Rectangle((-2.0, -1.0), (2.0, 1.0)) - Polygon(foil), 0.12
-
-
-#: Random families: name -> generator of (domain, default size) from a NumPy Generator.
-FAMILIES: dict[str, Callable[[np.random.Generator], tuple[Domain, float]]] = {
-    "plates": _plate,
-    "polygons": _polygon,
-    "airfoils": _airfoil,
+#: Random families of :func:`random_specs`: batch name -> family of :mod:`injmesh.shapes`.  The
+#: three of the issue (``polygons``: random star or random-walk polygons with 1-3 holes;
+#: ``plates``: perforated plates; ``airfoils``: NACA 4-digit profiles in a box), then every
+#: family of :mod:`injmesh.shapes` under its own name.
+FAMILIES: dict[str, str] = {
+    "polygons": "holes", "plates": "plates", "airfoils": "airfoil",
+    **{name: name for name in SHAPE_FAMILIES if name not in ("plates",)},
 }
 
 
-def family_member(family: str, seed: int, index: int) -> tuple[Domain, float]:
-    """The domain and default size of member ``index`` of a random family with ``seed``.
-
-    Examples
-    --------
-    >>> domain, h = family_member("plates", 0, 3)
-    >>> domain.sdf([[0.0, 0.0]])[0] == 0.0, h
-    (np.True_, 0.08)
-    """
-    if family not in FAMILIES:
-        raise ValueError(f"unknown family {family!r}; choose one of {', '.join(FAMILIES)}")
-    return FAMILIES[family](_family_rng(family, int(seed), int(index)))
-
-
-def random_specs(family: str, count: int, seed: int = 0, *, size: float | str | None = None,
-                 nodes: int | None = None, format: str = DEFAULT_FORMAT) -> list[MeshSpec]:
-    """``count`` specs of random shapes of a family: a ready-made training set.
-
-    Families: ``plates`` (rectangular plates with 1-4 circular holes), ``polygons`` (random
-    star-shaped polygons with 0-2 holes), ``airfoils`` (NACA 4-digit profiles at an angle of
-    attack in a box).  Each spec names its member ``{"family": ..., "seed": ..., "index": i}``;
-    the shape is made from the seed and the index alone, so member i is the same whatever the
-    count.  Names are ``<family>-s<seed>-<index>``.
+def family_member(family: str, seed: int, params: Mapping[str, Any] | None = None) -> tuple[Domain, float]:
+    """The domain and suggested size of the shape of a random family with this seed.
 
     Parameters
     ----------
     family : str
         One of :data:`FAMILIES`.
+    seed : int
+        The shape's seed (see :mod:`injmesh.shapes`: the same seed, the same shape).
+    params : dict, optional
+        Keyword parameters of the family's generator (``{"n_holes": 3}``).
+
+    Examples
+    --------
+    >>> domain, h = family_member("plates", 3)
+    >>> float(domain.sdf([[-1.0, 0.5]])[0]), h
+    (1.0, 0.05)
+    """
+    if family not in FAMILIES:
+        raise ValueError(f"unknown family {family!r}; choose one of {', '.join(FAMILIES)}")
+    shape = SHAPE_FAMILIES[FAMILIES[family]](int(seed), **dict(params or {}))
+    return shape.domain(), float(shape.size)
+
+
+def _check_params(family: str, params: Any) -> None:
+    if not isinstance(params, Mapping):
+        raise _Invalid("domain", f"a family member's 'params' must be an object, got {params!r}")
+    accepted = [
+        name for name, p in inspect.signature(SHAPE_FAMILIES[FAMILIES[family]]).parameters.items()
+        if p.kind is inspect.Parameter.KEYWORD_ONLY
+    ]
+    for key in params:
+        if key not in accepted:
+            raise _Invalid("domain", f"family {family!r} has no parameter {key!r}; it takes "
+                           f"{', '.join(accepted) or 'none'}")
+
+
+def random_specs(family: str, count: int, seed: int = 0, *, size: float | str | None = None,
+                 nodes: int | None = None, format: str = DEFAULT_FORMAT,
+                 params: Mapping[str, Any] | None = None) -> list[MeshSpec]:
+    """``count`` specs of random shapes of one family: a ready-made training set.
+
+    Spec ``k`` meshes the family's shape with seed ``seed + k`` (as
+    :func:`injmesh.shapes.family` numbers them), named ``<family>-<seed + k>``; so a larger
+    count extends a smaller one and a rerun into the same directory only meshes the new ones.
+    The shapes come from :mod:`injmesh.shapes` (each verified simple, holes inside) with the
+    family's suggested size unless ``size`` or ``nodes`` is given.
+
+    Parameters
+    ----------
+    family : str
+        One of :data:`FAMILIES`: ``polygons``, ``plates``, ``airfoils``, or a family of
+        :mod:`injmesh.shapes` by its own name.
     count : int
         Number of specs (>= 0).
     seed : int
-        Seed of the family (>= 0).
+        Seed of the first shape (>= 0).
     size, nodes : optional
-        Override the family's own size: a size (number or expression) or a node count.
+        A size (number or expression) or a target node count for every shape.
     format : str
         Output format of every spec.
+    params : dict, optional
+        Keyword parameters of the family's generator, JSON values (``{"n_holes": 3}``).
 
     Returns
     -------
     list of MeshSpec
 
+    Raises
+    ------
+    SpecError
+        A bad family, count, seed, size, node count, format or parameter.
+
     Examples
     --------
-    >>> specs = random_specs("plates", 3, seed=7)
+    >>> specs = random_specs("plates", 3, seed=7, nodes=300)
     >>> [s.name for s in specs]
-    ['plates-s7-00000', 'plates-s7-00001', 'plates-s7-00002']
-    >>> specs[2].domain
-    {'family': 'plates', 'seed': 7, 'index': 2}
+    ['plates-000007', 'plates-000008', 'plates-000009']
+    >>> specs[2].to_json()
+    '{"name": "plates-000009", "domain": {"family": "plates", "seed": 9}, "nodes": 300, "format": "npz"}'
     """
-    if family not in FAMILIES:
-        raise ValueError(f"unknown family {family!r}; choose one of {', '.join(FAMILIES)}")
     for label, value in (("count", count), ("seed", seed)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-            raise ValueError(f"{label} must be a whole number >= 0, got {value!r}")
-    width = max(5, len(str(max(int(count) - 1, 0))))
+            raise SpecError([("random_specs", label, f"must be a whole number >= 0, got {value!r}")])
+    width = max(6, len(str(int(seed) + int(count) - 1)))
     out = []
-    for i in range(int(count)):
-        obj: dict[str, Any] = {"name": f"{family}-s{seed}-{i:0{width}d}",
-                               "domain": {"family": family, "seed": int(seed), "index": i},
+    for k in range(int(count)):
+        member: dict[str, Any] = {"family": family, "seed": int(seed) + k}
+        if params:
+            member["params"] = dict(params)
+        obj: dict[str, Any] = {"name": f"{family}-{int(seed) + k:0{width}d}", "domain": member,
                                "format": format}
         if size is not None:
             obj["size"] = size
         if nodes is not None:
             obj["nodes"] = nodes
-        out.append(parse_spec(obj, where=f"random spec {i}"))
+        out.append(parse_spec(obj, where="random_specs"))  # the first error stops: all are alike
     return out
 
 
@@ -803,7 +767,7 @@ def _build_domain(task: dict[str, Any]) -> tuple[Domain, Any]:
         return source.domain, source.size
     if kind == "family":
         member = rest[0]
-        return family_member(member["family"], member["seed"], member["index"])
+        return family_member(member["family"], member["seed"], member.get("params"))
     if kind == "geojson":
         return read_geojson(rest[0]), None
     if kind == "wkt":
