@@ -368,7 +368,7 @@ def acceptance_specs(tmp_path: Path) -> Path:
     (shapes / "broken.geojson").write_bytes(b"\xff\xfe\x00 not text")
     formats = ["npz", "msh", "vtu", "xdmf", "mesh"]
     specs: list[dict] = []
-    for i, case in enumerate(sorted(CASES)):
+    for case in sorted(CASES):
         specs.append({"name": f"case-{case}", "domain": case, "size": 0.25})
         specs.append({"name": f"nodes-{case}", "domain": case, "nodes": 60})
     specs.append({"name": "disc-own-size", "domain": "unit_disc"})
@@ -421,7 +421,7 @@ def test_acceptance_on_a_local_cluster(tmp_path, two_workers):
     files = mesh_files(out)
     assert len(files) == 38
     workers = set(two_workers.scheduler_info()["workers"])
-    for name, row in rows.items():
+    for row in rows.values():
         if row["status"] != "ok":
             assert row["file"] == "" and row["sha256"] == ""
             continue
