@@ -1292,11 +1292,8 @@ def mesh_many(
 def _run_on_dask(client: Any, tasks: list[dict[str, Any]], finish: Callable[[dict[str, Any]], None]) -> None:
     from distributed import as_completed
 
-    futures = [
-        client.submit(run_task, task, key=f"injmesh-{task['name']}-{secrets.token_hex(4)}",
-                      pure=False)
-        for task in tasks
-    ]
+    run = secrets.token_hex(4)  # keys unique to this run, readable on the Dask dashboard
+    futures = client.map(run_task, tasks, key=[f"injmesh-{t['name']}-{run}" for t in tasks])
     by_key = {f.key: t for f, t in zip(futures, tasks, strict=True)}
     pending = set(futures)
     finished = as_completed(futures)
