@@ -712,7 +712,7 @@ def _prepare(spec: MeshSpec, timeout: float | None) -> tuple[dict[str, Any], str
             if kind == "poly" and node.is_file():
                 extra = _read_input(node, "domain")
             digests["domain"] = _sha256((text + "\0" + (extra or "")).encode())
-            task["domain"] = (kind, text, extra, str(path))
+            task["domain"] = ("file", kind, text, extra, str(path))
         except _InputError as exc:
             problem = str(exc)
             digests["domain"] = "unreadable: " + problem
@@ -772,8 +772,8 @@ def _build_domain(task: dict[str, Any]) -> tuple[Domain, Any]:
         return read_geojson(rest[0]), None
     if kind == "wkt":
         return read_wkt(rest[0]), None
-    text, extra, original = rest
-    if kind == "poly":
+    fmt, text, extra, original = rest
+    if fmt == "poly":
         # read_poly reads files (a .poly may need its .node): recreate them in a scratch directory.
         with tempfile.TemporaryDirectory(prefix="injmesh-") as tmp:
             path = Path(tmp) / Path(original).name
@@ -782,9 +782,13 @@ def _build_domain(task: dict[str, Any]) -> tuple[Domain, Any]:
                 path.with_suffix(".node").write_text(extra, encoding="utf-8")
             try:
                 return read_poly(path), None
-            except ValueError as exc:
-                raise type(exc)(str(exc).replace(str(path), original)) from None
-    return (read_geojson(text) if kind == "geojson" else read_wkt(text)), None
+            except (ValueError, OSError) as exc:  # its messages name the file: name the user's
+                message = str(exc).replace(str(path.with_suffix("")), original[: -len(".poly")])
+                raise (type(exc) if isinstance(exc, ValueError) else ValueError)(message) from None
+    try:
+        return (read_geojson(text) if fmt == "geojson" else read_wkt(text)), None
+    except ValueError as exc:  # name the file: the reader only saw its text
+        raise type(exc)(f"{original!r}: {exc}") from None
 
 
 def _build_size(task: dict[str, Any], domain: Domain, own: Any) -> Any:
