@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> None:
 
                 start = time.perf_counter()
                 with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                  dashboard_address=None, silence_logs=logging.ERROR) as cluster, \
+                                  dashboard_address=":0", silence_logs=logging.ERROR) as cluster, \
                         Client(cluster) as client:
                     client.wait_for_workers(workers)
                     startup = time.perf_counter() - start

@@ -400,7 +400,7 @@ def acceptance_specs(tmp_path: Path) -> Path:
 def two_workers():
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address=":0") as cluster:
         with distributed.Client(cluster) as client:
             yield client
 
@@ -448,7 +448,7 @@ def test_acceptance_on_a_local_cluster(tmp_path, two_workers):
 
     # One worker, reached by its scheduler's address: the same files, bit for bit.
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as one:
+                                  dashboard_address=":0") as one:
         single = mesh_many(specs, tmp_path / "one", client=one.scheduler_address)
     assert single.counts == {"ok": 38, "failed": 2}
     assert mesh_files(tmp_path / "one") == files

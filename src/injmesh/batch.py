@@ -1140,8 +1140,10 @@ def _cluster(client: Any, workers: int | None, signals: _StopSignals) -> Iterato
     cluster = None
     try:
         with signals.hold():
+            # dashboard_address=None still binds port 8787 (and warns when it is taken); ":0"
+            # takes any free port.
             cluster = distributed.LocalCluster(
-                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                 silence_logs=logging.CRITICAL, preload=[_WORKER_PRELOAD],
             )
         with distributed.Client(cluster) as own:
