@@ -533,12 +533,13 @@ def size_for_nodes(domain: Domain, nodes: int) -> float:
 
 
 #: Random families of :func:`random_specs`: batch name -> family of :mod:`injmesh.shapes`.  The
-#: three of the issue (``polygons``: random star or random-walk polygons with 1-3 holes;
-#: ``plates``: perforated plates; ``airfoils``: NACA 4-digit profiles in a box), then every
-#: family of :mod:`injmesh.shapes` under its own name.
+#: three of the issue (``polygons``: random star or random-walk polygons with 1-3 holes, the
+#: shapes family ``holes``; ``plates``: perforated plates; ``airfoils``: NACA 4-digit profiles
+#: in a box, the shapes family ``airfoil``), then the other families of :mod:`injmesh.shapes`
+#: under their own names.
 FAMILIES: dict[str, str] = {
     "polygons": "holes", "plates": "plates", "airfoils": "airfoil",
-    **{name: name for name in SHAPE_FAMILIES if name not in ("plates",)},
+    **{name: name for name in SHAPE_FAMILIES if name not in ("holes", "plates", "airfoil")},
 }
 
 
@@ -1266,6 +1267,7 @@ def mesh_many(
             spec_hash=result["hash"], file=file, sha256=digest,
         )
         done += 1
+        logger.debug("%s: %s %s", name, result["status"], result.get("message", ""))
         if callback is not None:
             callback(Progress("batch", done, total, {"name": name, "status": result["status"]}))
         if time.monotonic() - last_write > SUMMARY_INTERVAL:
@@ -1290,6 +1292,7 @@ def mesh_many(
             _write_summary(summary_path, ordered())
     summary = BatchSummary(tuple(ordered()), total, summary_path, time.perf_counter() - start,
                            interrupted is not None)
+    logger.info("%r in %.1f s", summary, summary.seconds)
     if interrupted is not None:
         raise BatchInterrupted(summary, interrupted)
     return summary

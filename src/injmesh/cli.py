@@ -439,8 +439,9 @@ def _add_batch_parser(sub: Any, common: argparse.ArgumentParser) -> None:
                        help="one spec a line: {\"name\": ..., \"domain\": ..., \"size\": ... | "
                        "\"nodes\": ..., \"format\": ...}")
     batch.add_argument("--out", required=True, metavar="DIR", help="output directory")
-    batch.add_argument("--family", choices=sorted(FAMILIES),
-                       help="instead of SPECS: random shapes of this family (written to DIR/specs.jsonl)")
+    batch.add_argument("--family", choices=list(FAMILIES), metavar="FAMILY",
+                       help=f"instead of SPECS: random shapes of this family ({', '.join(FAMILIES)}; "
+                       "see injmesh.shapes), written to DIR/specs.jsonl")
     batch.add_argument("--count", type=_positive_int, default=100, metavar="N",
                        help="with --family: number of shapes (default 100)")
     batch.add_argument("--seed", type=_positive_int, default=0, metavar="S",
