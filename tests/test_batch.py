@@ -459,3 +459,17 @@ def test_acceptance_on_a_local_cluster(tmp_path, two_workers):
 def test_mesh_spec_is_validated_again(tmp_path):
     with pytest.raises(SpecError, match="field 'nodes'"):
         mesh_many([MeshSpec("a", "unit_disc", size=0.2, nodes=30)], tmp_path, workers=0)
+
+
+def test_cli_scheduler_and_progress_bar(tmp_path, two_workers, capsys):
+    specs = write_jsonl(tmp_path / "specs.jsonl", [
+        {"name": f"disc-{k}", "domain": "unit_disc", "size": 0.3 + 0.05 * k} for k in range(3)])
+    address = two_workers.scheduler.address
+    argv = ["batch", str(specs), "--out", str(tmp_path / "out"), "--scheduler", address, "--progress"]
+    assert main(argv) == 0
+    stdout, stderr = capsys.readouterr()
+    assert "3 of 3 meshes" in stdout and "3 meshed now" in stdout
+    assert "batch      [" in stderr and "] 3/3" in stderr  # the ProgressBar of `generate`
+    assert len(two_workers.scheduler_info()["workers"]) == 2  # the cluster is left running
+    assert main(["batch", str(specs), "--out", str(tmp_path / "o"), "--scheduler", address,
+                 "--workers", "1"]) == 2
