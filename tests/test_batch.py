@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import injmesh
 from injmesh.batch import (
@@ -116,6 +118,27 @@ def test_every_invalid_line_is_reported_with_its_line_and_field(tmp_path):
     assert "line 15, field 'domain': family 'plates' has no parameter 'holes'" in message
 
 
+JSON = st.recursive(
+    st.none() | st.booleans() | st.integers(-10, 10**7) | st.floats(allow_nan=False)
+    | st.text(max_size=30) | st.sampled_from(["unit_disc", SQUARE, "x.geojson", "0.1", "plates"]),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=4),
+    max_leaves=12,
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.dictionaries(st.sampled_from(["name", "domain", "size", "nodes", "format", "extra"]), JSON)
+       | JSON)
+def test_validation_accepts_or_names_the_problem(obj):
+    """Whatever JSON a line holds, validation returns a spec or raises SpecError, nothing else."""
+    try:
+        spec = parse_spec(obj, where="line 1")
+    except SpecError as exc:
+        assert str(exc).startswith("line 1")
+    else:
+        assert parse_spec(json.loads(spec.to_json())) == spec
+
+
 def test_nothing_is_written_when_a_spec_is_invalid(tmp_path):
     out = tmp_path / "out"
     with pytest.raises(SpecError, match=r"spec 2, field 'format'"):
@@ -132,6 +155,8 @@ def test_spec_round_trip_and_defaults():
     assert again == spec
     assert parse_spec({"name": "d", "domain": "unit_disc"}).format == "npz"
     assert parse_spec({"name": "d", "domain": "unit_disc", "size": 1}).size == 1.0
+    with pytest.raises(SpecError, match="field 'domain': must be plain JSON"):
+        parse_spec({"name": "d", "domain": {"type": "Polygon", "coordinates": [[[0, float("inf")]]]}})
     with pytest.raises(TypeError):
         mesh_many({"name": "d", "domain": "unit_disc"}, "out", workers=0)  # one dict, not a list
 

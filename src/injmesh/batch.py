@@ -250,7 +250,10 @@ def _parse(obj: Any, base_dir: str | os.PathLike[str] | None, default_format: st
     if domain is None:
         raise _Invalid("domain", "missing")
     if isinstance(domain, Mapping):
-        domain = json.loads(json.dumps(domain))  # a plain, JSON-able copy (raises on NaN: below)
+        try:  # a plain copy, as it will be hashed and sent to the workers
+            domain = json.loads(json.dumps(domain, allow_nan=False))
+        except (TypeError, ValueError) as exc:
+            raise _Invalid("domain", f"must be plain JSON (no NaN or infinity): {exc}") from None
         _check_domain_object(domain)
     elif isinstance(domain, str):
         _check_domain_text(domain.strip(), CASES)
@@ -412,9 +415,6 @@ def _validate(items: Iterable[tuple[str, Any]], base_dir: Path | None,
             spec = _parse(obj, base_dir, default_format)
         except _Invalid as exc:
             errors.append((where, exc.field, exc.message))
-            continue
-        except ValueError as exc:  # NaN or infinity inside a GeoJSON object
-            errors.append((where, "domain", str(exc)))
             continue
         key = spec.name.lower()
         if key in seen:
