@@ -8,8 +8,10 @@ meshes, 95-309 nodes in the paper's Section 5) into its own directory; the table
 second, the speed-up over serial and the scheduling overhead per mesh (wall time on one worker
 minus wall time in this process, and wall time on one worker minus the time spent inside the
 mesh tasks, each divided by the number of meshes: what going through Dask costs).  Cluster
-start-up is timed separately and left out of the throughput.  The files of every mode are
-compared at the end: they must be identical, bit for bit.
+start-up is timed separately and left out of the throughput.  The modes take turns on a tenth
+of the specs at a time (``--rounds``), so that the changing load of a shared machine weighs on
+all of them alike.  The files of every mode are compared at the end: they must be identical,
+bit for bit.
 """
 
 from __future__ import annotations
@@ -31,59 +33,69 @@ def file_hashes(out: Path) -> dict[str, str]:
 
 
 def run(args: argparse.Namespace) -> None:
+    from distributed import Client, LocalCluster
+
     specs = random_specs(args.family, args.count, seed=args.seed, nodes=args.nodes)
-    print(f"{args.count} x {args.family} (seed {args.seed}, about {args.nodes} nodes each); "
-          f"{os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f}")
-    rows = []
-    hashes = {}
-    with tempfile.TemporaryDirectory(prefix="injmesh-bench-") as tmp:
-        serial_wall = None
-        for workers in [0, *args.workers]:
-            out = Path(tmp) / f"w{workers}"
-            if workers == 0:
-                start = time.perf_counter()
-                summary = mesh_many(specs, out, workers=0)
-                wall, startup = time.perf_counter() - start, 0.0
-                serial_wall = wall
-            else:
-                from distributed import Client, LocalCluster
-
-                start = time.perf_counter()
-                with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                  dashboard_address=":0", silence_logs=logging.ERROR) as cluster, \
-                        Client(cluster) as client:
-                    client.wait_for_workers(workers)
-                    startup = time.perf_counter() - start
+    print(f"{args.count} x {args.family} (seed {args.seed}, about {args.nodes} nodes each) in "
+          f"{args.rounds} round(s); {os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f}")
+    modes = [0, *args.workers]
+    wall = dict.fromkeys(modes, 0.0)
+    inside = dict.fromkeys(modes, 0.0)
+    startup = dict.fromkeys(modes, 0.0)
+    counts: dict[int, dict[str, int]] = {m: {} for m in modes}
+    clusters = {}
+    try:
+        for workers in args.workers:  # started once; idle workers cost nothing
+            start = time.perf_counter()
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", silence_logs=logging.ERROR)
+            client = Client(cluster)
+            client.wait_for_workers(workers)
+            clusters[workers] = (cluster, client)
+            startup[workers] = time.perf_counter() - start
+        with tempfile.TemporaryDirectory(prefix="injmesh-bench-") as tmp:
+            # Modes take turns on the same chunk of specs, round after round, so that a change
+            # of load on a shared machine weighs on every mode alike.
+            for r in range(args.rounds):
+                chunk = specs[r * len(specs) // args.rounds:(r + 1) * len(specs) // args.rounds]
+                for workers in modes:
+                    out = Path(tmp) / f"w{workers}"
+                    client = clusters[workers][1] if workers else None
                     start = time.perf_counter()
-                    summary = mesh_many(specs, out, client=client)
-                    wall = time.perf_counter() - start
-            task_seconds = sum(r.seconds or 0.0 for r in summary.rows)
-            rows.append((workers, summary, wall, startup, task_seconds))
-            hashes[workers] = file_hashes(out)
-            print(f"  {'serial' if workers == 0 else f'{workers} worker(s)'}: {wall:.1f} s "
-                  f"{summary.counts}", flush=True)
+                    summary = (mesh_many(chunk, out, workers=0) if workers == 0
+                               else mesh_many(chunk, out, client=client))
+                    wall[workers] += time.perf_counter() - start
+                    inside[workers] += sum(row.seconds or 0.0 for row in summary.rows)
+                    for status, n in summary.counts.items():
+                        counts[workers][status] = counts[workers].get(status, 0) + n
+                print(f"  round {r + 1}: " + ", ".join(f"{m} worker(s) {wall[m]:.1f} s" for m in modes),
+                      flush=True)
+            hashes = {m: file_hashes(Path(tmp) / f"w{m}") for m in modes}
+    finally:
+        for cluster, client in clusters.values():
+            client.close()
+            cluster.close()
 
-    assert serial_wall is not None
-    one = next((r for r in rows if r[0] == 1), None)
-    # Two views of what Dask costs per mesh on one worker: the extra wall time over meshing in
-    # this process, and the wall time during which the worker was not inside a mesh task
-    # (scheduling, shipping specs and files, writing them here).
-    overhead = (one[2] - serial_wall) / args.count if one else float("nan")
-    idle = (one[2] - one[4]) / args.count if one else float("nan")
+    serial = wall[0]
     print()
-    print("| mode | meshes | wall s | meshes/s | speed-up | cluster start s | sum of task s |")
+    print("| mode | meshes | wall s | meshes/s | speed-up | cluster start s | time inside tasks s |")
     print("|---|---|---|---|---|---|---|")
-    for workers, summary, wall, startup, task_seconds in rows:
-        mode = "serial (no Dask)" if workers == 0 else f"LocalCluster, {workers} worker(s)"
-        ok = summary.counts.get("ok", 0)
-        print(f"| {mode} | {ok}/{len(summary.rows)} | {wall:.1f} | {args.count / wall:.2f} | "
-              f"{serial_wall / wall:.2f}x | {startup:.1f} | {task_seconds:.1f} |")
+    for m in modes:
+        mode = "serial (no Dask)" if m == 0 else f"LocalCluster, {m} worker(s)"
+        done = ", ".join(f"{n} {s}" for s, n in counts[m].items())
+        print(f"| {mode} | {done} | {wall[m]:.1f} | {args.count / wall[m]:.2f} | "
+              f"{serial / wall[m]:.2f}x | {startup[m]:.1f} | {inside[m]:.1f} |")
     print()
-    print(f"scheduling overhead per mesh: {overhead * 1000:.1f} ms (1 worker wall - serial wall), "
-          f"{idle * 1000:.1f} ms (1 worker wall - time inside tasks)")
-    reference = hashes[0]
-    same = all(h == reference for h in hashes.values())
-    print(f"files identical across modes: {'yes' if same else 'NO'} ({len(reference)} files)")
+    if 1 in wall:
+        # Two views of what Dask costs per mesh on one worker: the extra wall time over meshing
+        # in this process, and the wall time during which the worker was not inside a mesh task
+        # (scheduling, shipping specs and files, writing them here).
+        overhead = (wall[1] - serial) / args.count
+        idle = (wall[1] - inside[1]) / args.count
+        print(f"scheduling overhead per mesh: {overhead * 1000:.1f} ms (1 worker wall - serial "
+              f"wall), {idle * 1000:.1f} ms (1 worker wall - time inside tasks)")
+    same = all(h == hashes[0] for h in hashes.values())
+    print(f"files identical across modes: {'yes' if same else 'NO'} ({len(hashes[0])} files)")
 
 
 def main() -> None:
@@ -93,6 +105,8 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--nodes", type=int, default=200)
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--rounds", type=int, default=10,
+                        help="modes take turns on count/rounds specs at a time (default 10)")
     run(parser.parse_args())
 
 
