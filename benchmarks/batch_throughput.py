@@ -72,8 +72,8 @@ def run(args: argparse.Namespace) -> None:
                       flush=True)
             hashes = {m: file_hashes(Path(tmp) / f"w{m}") for m in modes}
     finally:
-        for cluster, client in clusters.values():
-            client.close()
+        for cluster, client in reversed(clusters.values()):  # last in, first out: each cluster
+            client.close()                                    # restores the log level it found
             cluster.close()
 
     serial = wall[0]
