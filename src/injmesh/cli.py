@@ -28,7 +28,6 @@ From Python, ``main`` takes the arguments and returns the exit status:
 from __future__ import annotations
 
 import argparse
-import contextlib
 import logging
 import math
 import sys
@@ -488,8 +487,10 @@ def _batch(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
     try:
         if args.family is not None:
             size: Any = args.size
-            with contextlib.suppress(TypeError, ValueError):
+            try:
                 size = float(size)
+            except (TypeError, ValueError):  # None, or an expression in x and y
+                pass
             specs = random_specs(args.family, args.count, args.seed, size=size, nodes=args.nodes,
                                  format=fmt)
             out_dir.mkdir(parents=True, exist_ok=True)
