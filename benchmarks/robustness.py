@@ -31,7 +31,8 @@ and replaced on timeout) and is classified:
 - **timeout**: no answer within ``--timeout`` seconds.
 
 The checks are this script's own (a second opinion, with shapely/GEOS for the geometry, not
-injmesh's code): no duplicate node (closer than 1e-10 diameter) or unused node; no zero-area or
+injmesh's code): no duplicate node (closer than 1e-6 diameter, the
+on-boundary tolerance: 1e-7 twins must be merged) or unused node; no zero-area or
 inverted triangle; no edge shared by more than two triangles; every triangle centroid strictly
 inside the domain; every node of a boundary edge (edge of one triangle) within 1e-6 diameter of
 the domain boundary; mesh area = domain area and boundary length = perimeter (relative 1e-3;
@@ -50,6 +51,7 @@ Usage::
     python benchmarks/robustness.py [--count 1000] [--seed 0] [--timeout 60] [--jobs 1]
                                     [--family star] [--save DIR]
     python benchmarks/robustness.py --real [--timeout 300]
+    python benchmarks/robustness.py --selftest    # the checker on hand-made good and bad meshes
 
 ``--real`` meshes the real-outline fixtures instead: a fractal coastline with islands whose
 straits are narrower than h (as land, and as the sea around it), a 20,000-vertex outline, and
@@ -77,7 +79,7 @@ import numpy as np
 MIX = (("star", 0.25), ("walk", 0.25), ("sharp", 0.20), ("neck", 0.15), ("duplicates", 0.15))
 STATUSES = ("valid", "invalid", "refused", "crashed", "timeout")
 ON_BOUNDARY = 1e-6  # of the diameter
-DUPLICATE = 1e-10  # of the diameter
+DUPLICATE = 1e-6  # of the diameter: nodes closer than the on-boundary tolerance are one point
 CORNER_TURN = 20.0  # degrees
 
 
@@ -348,6 +350,52 @@ def check_mesh(
     if abs(covered - boundary.length) > 1e-3 * boundary.length:
         defects["perimeter_mismatch"] = 1
     return {k: int(c) for k, c in defects.items() if c}, lost
+
+
+def selftest() -> None:
+    """The checker on hand-made meshes of a notched rectangle: it must see exactly what is wrong."""
+    import shapely
+    from scipy.spatial import Delaunay
+
+    from injmesh.shapes import Shape
+
+    def sample(ring: np.ndarray, h: float) -> np.ndarray:
+        out = []
+        for a, b in zip(ring, np.roll(ring, -1, axis=0), strict=True):
+            k = max(1, int(np.ceil(np.hypot(*(b - a)) / h)))
+            out.append(a + np.outer(np.arange(k) / k, b - a))
+        return np.concatenate(out)
+
+    def mesh(ring: np.ndarray, nodes: np.ndarray, clip: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        poly = shapely.Polygon(ring)
+        xs, ys = np.meshgrid(np.linspace(0.05, 1.95, 20), np.linspace(0.05, 0.95, 10))
+        inner = np.column_stack([xs.ravel(), ys.ravel()])
+        inner = inner[shapely.contains_xy(poly, inner[:, 0], inner[:, 1])]
+        inner = inner[shapely.distance(poly.boundary, shapely.points(inner)) > 0.04]
+        p = np.vstack([nodes, inner])
+        t = Delaunay(p).simplices
+        c = p[t].mean(axis=1)
+        return p, (t[shapely.contains_xy(poly, c[:, 0], c[:, 1])] if clip else t)
+
+    notch = np.array([(0, 0), (2, 0), (2, 1), (1.1, 1), (1.0, 0.3), (0.9, 1), (0, 1)], dtype=float)
+    nodes = sample(notch, 0.1)
+    shape = Shape(notch, [])
+    assert check_mesh(*mesh(notch, nodes), shape, 0.1) == ({}, 0)
+    bridged, lost = check_mesh(*mesh(notch, nodes, clip=False), shape, 0.1)
+    assert lost == 2 and bridged["centroid_outside"] > 0 and "area_mismatch" in bridged, bridged
+    no_corner = nodes[~np.all(nodes == [2.0, 1.0], axis=1)]
+    defects, lost = check_mesh(*mesh(notch, no_corner), shape, 0.1)
+    assert defects["missing_corner"] == 1 and lost > 0, defects
+    p, t = mesh(notch, nodes)
+    assert check_mesh(np.vstack([p, p[:1]]), t, shape, 0.1)[0] == {"unused_node": 1, "duplicate_node": 1}
+    assert check_mesh(p, t[:, ::-1], shape, 0.1)[0]["inverted_triangle"] == len(t)
+    # A vertex turning by 10 degrees may be cut by a chord: the cut area is allowed for.
+    dip = np.array([(0, 0), (1, -0.0875), (2, 0), (2, 1), (0, 1)], dtype=float)
+    cut = sample(dip, 0.1)
+    cut = cut[~np.all(cut == [1.0, -0.0875], axis=1)]
+    assert check_mesh(*mesh(dip, cut), Shape(dip, []), 0.1) == ({}, 0)
+    assert abs(corner_bound(60) - 1) < 1e-12 and abs(corner_bound(5) - 0.16687) < 1e-4
+    print("checker self-test passed")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -644,7 +692,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--save", default=None, help="write PNGs of the worst cases' meshes here")
     ap.add_argument("--real", action="store_true", help="mesh the real-outline fixtures instead")
     ap.add_argument("--memory", type=float, default=4.0, help="address-space cap per worker, GB (4)")
+    ap.add_argument("--selftest", action="store_true", help="check the checker on hand-made meshes")
     args = ap.parse_args(argv)
+    if args.selftest:
+        selftest()
+        return 0
     import injmesh
     from injmesh import shapes
 

@@ -347,7 +347,8 @@ def test_cli_family_writes_its_specs(tmp_path, capsys):
     assert main(argv) == 0 and "0 meshed now, 2 up to date" in capsys.readouterr().out
 
 
-def test_cli_sigint_stops_cleanly(tmp_path):
+@pytest.mark.parametrize(("signum", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_cli_signal_stops_cleanly(tmp_path, signum, status):
     specs = write_jsonl(tmp_path / "specs.jsonl",
                         [{"name": f"disc-{k}", "domain": "unit_disc", "size": 0.05 + 0.001 * k}
                          for k in range(40)])
@@ -360,14 +361,14 @@ def test_cli_sigint_stops_cleanly(tmp_path):
         deadline = time.monotonic() + 120
         while not (out.is_dir() and mesh_files(out)) and time.monotonic() < deadline:
             time.sleep(0.05)
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(signum)
         _, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    assert proc.returncode == 130, err
-    assert "batch stopped" in err and "rerun the same command to resume" in err
+    assert proc.returncode == status, err
+    assert f"{signal.Signals(signum).name}: batch stopped" in err and "rerun the same command to resume" in err
     rows = read_summary(out / "summary.csv")
     files = mesh_files(out)
     assert 1 <= len(rows) < 40 and sorted(files) == sorted(r.file for r in rows.values())

@@ -184,7 +184,7 @@ def test_necks_are_narrower_than_the_width_asked(width: float) -> None:
         ys = a[cross, 1] + t * (b[cross, 1] - a[cross, 1])
         assert len(ys) == 2
         assert 0 < abs(ys[0] - ys[1]) < width
-        assert 0 < s.params["neck_width"] < width
+        assert 0.3 * 0.9 * width < s.params["neck_width"] < width
         assert s.size == width
         assert_valid(s)
 

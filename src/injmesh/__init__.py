@@ -20,7 +20,8 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .errors import ConvergenceWarning, NodeBudgetError
+from .errors import ConvergenceWarning, MeshError, NodeBudgetError
+from .expression import size_expression
 from .geometry import (
     Circle,
     Difference,
@@ -69,6 +70,7 @@ __all__ = [
     "Implicit",
     "Intersection",
     "Mesh",
+    "MeshError",
     "MeshStats",
     "NodeBudgetError",
     "Polygon",
@@ -80,4 +82,5 @@ __all__ = [
     "generate",
     "plot_mesh",
     "read",
+    "size_expression",
 ]

@@ -994,7 +994,8 @@ class BatchSummary:
 
 
 class BatchInterrupted(KeyboardInterrupt):
-    """A batch stopped by Ctrl-C or SIGTERM; ``summary`` holds what finished (also on disk)."""
+    """A batch stopped by Ctrl-C, SIGTERM or SIGHUP; ``summary`` holds what finished (also on
+    disk) and ``signal_name`` the signal (``"SIGINT"`` for Ctrl-C)."""
 
     def __init__(self, summary: BatchSummary, signal_name: str = "SIGINT") -> None:
         super().__init__(f"batch interrupted by {signal_name}: {len(summary.rows)} of "
@@ -1050,42 +1051,57 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-class _StopSignals:
-    """Ctrl-C and SIGTERM stop a batch cleanly, as a KeyboardInterrupt in the main thread.
+#: Signals that stop a batch like Ctrl-C does.
+_TERMINATING = tuple(getattr(signal, n) for n in ("SIGTERM", "SIGHUP") if hasattr(signal, n))
 
-    SIGTERM is turned into KeyboardInterrupt for the duration of the batch (main thread only,
-    and only when nobody else handles SIGTERM).  While a cluster starts, both signals are held
-    back and delivered once it exists, so that it can always be closed: interrupting
+
+class _StopSignals:
+    """Ctrl-C, SIGTERM and SIGHUP stop a batch cleanly, as a KeyboardInterrupt in the main thread.
+
+    For the duration of the batch (main thread only) SIGTERM and SIGHUP are caught: an earlier
+    Python handler (the command line's) is called, and unless it raised, a KeyboardInterrupt
+    is; an ignored signal stays ignored.  While a cluster starts, every one of them is held back
+    and delivered once it exists, so that it can always be closed: interrupting
     ``LocalCluster()`` half-way leaves processes behind.
     """
 
     def __init__(self) -> None:
         self.received: str | None = None
         self._holding = False
-        self._pending = False
-        self._installed = False
+        self._pending: int | None = None
+        self._previous: dict[int, Any] = {}
         self._main = threading.current_thread() is threading.main_thread()
 
     def __enter__(self) -> _StopSignals:
-        if self._main and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
-            signal.signal(signal.SIGTERM, self._on_sigterm)
-            self._installed = True
+        if self._main:
+            for sig in _TERMINATING:
+                if signal.getsignal(sig) is signal.SIG_IGN:
+                    continue
+                with contextlib.suppress(OSError, ValueError):
+                    self._previous[sig] = signal.signal(sig, self._on_signal)
         return self
 
     def __exit__(self, *exc: object) -> None:
-        if self._installed:
-            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        for sig, handler in self._previous.items():
+            with contextlib.suppress(OSError, ValueError, TypeError):
+                signal.signal(sig, handler)
 
-    def _on_sigterm(self, signum: int, frame: Any) -> None:
-        self.received = "SIGTERM"
+    def _on_signal(self, signum: int, frame: Any) -> None:
+        self.received = signal.Signals(signum).name
         if self._holding:
-            self._pending = True
+            self._pending = signum
             return
-        raise KeyboardInterrupt("SIGTERM")
+        self._deliver(signum, frame)
+
+    def _deliver(self, signum: int, frame: Any) -> None:
+        previous = self._previous.get(signum)
+        if callable(previous):
+            previous(signum, frame)
+        raise KeyboardInterrupt(signal.Signals(signum).name)
 
     @contextlib.contextmanager
     def hold(self) -> Iterator[None]:
-        """Hold SIGINT and SIGTERM back during the block (SIGINT by blocking it)."""
+        """Hold Ctrl-C, SIGTERM and SIGHUP back during the block (SIGINT by blocking it)."""
         if not self._main:
             yield
             return
@@ -1104,9 +1120,9 @@ class _StopSignals:
                 signal.pthread_sigmask(signal.SIG_SETMASK, previous)  # a held Ctrl-C lands here
             else:
                 signal.signal(signal.SIGINT, previous)
-            if self._pending:
-                self._pending = False
-                raise KeyboardInterrupt("SIGTERM")
+            if self._pending is not None:
+                pending, self._pending = self._pending, None
+                self._deliver(pending, None)
 
 
 # Run by each worker process of our LocalCluster before it starts.  Ctrl-C in a terminal reaches

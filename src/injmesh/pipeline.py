@@ -5,21 +5,23 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .boundary import BoundaryMesh, mesh_boundary
-from .errors import ConvergenceWarning
+from .errors import ConvergenceWarning, MeshError
 from .geometry import Domain, as_domain
 from .geometry.base import as_points
 from .injection import inject_nodes
 from .mesh import Mesh, MeshStats
 from .progress import Callback
 from .sizing import SizeLike, as_size_function
-from .smoothing import Smoothing, missing_walls, smooth
+from .smoothing import Smoothing, smooth
 from .triangulation import boundary_edges
+from .validate import mesh_defects
 
 FloatArray = NDArray[np.float64]
 
@@ -38,6 +40,7 @@ def generate(
     smoothing: Smoothing = "hybrid",
     h0: float | None = None,
     seed: int | None = None,
+    strict: bool = True,
     callback: Callback | None = None,
 ) -> Mesh:
     """Mesh a 2-D domain with triangles whose edges follow the size function h.
@@ -74,6 +77,13 @@ def generate(
         DistMesh only: the spacing of its initial grid (default: the smallest h on the domain).
     seed : int, optional
         DistMesh only: seed of its random rejection step.
+    strict : bool
+        The mesh is checked before it is returned (:mod:`injmesh.validate`: no duplicate or
+        unused node, no flat or inverted triangle, every boundary segment a boundary edge, every
+        boundary node on the boundary, no triangle outside).  A mesh that fails raises
+        :class:`MeshError` naming each defect and where; with ``strict=False`` it is returned
+        with ``mesh.stats.valid == False`` and the list in ``mesh.stats.defects`` (and a
+        warning).
     callback : callable, optional
         Called with a :class:`~injmesh.progress.Progress` event per boundary sweep, injection
         layer and smoothing iteration.
@@ -81,6 +91,11 @@ def generate(
     Returns
     -------
     Mesh
+
+    Raises
+    ------
+    MeshError
+        The mesh failed its checks (only with ``strict=True``).
 
     Examples
     --------
@@ -104,6 +119,9 @@ def generate(
             dom, h, h0=h0, seed=seed, fixed_points=fixed, max_iterations=max_iterations,
             max_nodes=int(max_nodes), callback=callback,
         )
+        # DistMesh has no boundary segments to hold its mesh to: the structural checks only.
+        defects = tuple(mesh_defects(mesh.points, mesh.triangles, diameter=dom.diameter))
+        mesh = replace(mesh, stats=replace(mesh.stats, valid=not defects, defects=defects))
     elif method == "injection":
         if h0 is not None or seed is not None:
             raise ValueError("h0 and seed apply to method='distmesh' only")
@@ -113,12 +131,19 @@ def generate(
     else:
         raise ValueError(f"method must be 'injection' or 'distmesh', got {method!r}")
     if not mesh.stats.converged:
+        where = mesh.stats.unsettled
+        at = f" (still moving most at ({where[0]:.6g}, {where[1]:.6g}))" if where else ""
         warnings.warn(
-            f"{method} smoothing did not converge in {mesh.stats.iterations} iterations; "
+            f"{method} smoothing did not converge in {mesh.stats.iterations} iterations{at}; "
             "the mesh is returned with converged=False",
             ConvergenceWarning,
             stacklevel=2,
         )
+    if not mesh.stats.valid:
+        listing = "; ".join(str(d) for d in mesh.stats.defects)
+        if strict:
+            raise MeshError(f"the mesh failed its checks: {listing}", mesh.stats.defects)
+        warnings.warn(f"the mesh is invalid (strict=False): {listing}", ConvergenceWarning, stacklevel=2)
     return mesh
 
 
@@ -163,6 +188,7 @@ def _place_nodes(
     seconds: dict[str, float] | None = None,
 ) -> tuple[BoundaryMesh, FloatArray, FloatArray]:
     """Steps 1 and 2: boundary nodes, seeds (boundary + fixed interior) and injected nodes."""
+    h = _capped(h, domain.diameter)
     t = time.perf_counter()
     # Step 1: meshing of the boundary (Eq. 3.1-3.3, Algorithms 2 and 3).
     bnd = mesh_boundary(domain, h, fixed, max_nodes=max_nodes, callback=callback)
@@ -202,30 +228,20 @@ def _injection(
     prev[bnd.edges[:, 1]] = bnd.edges[:, 0]
     sliding = np.stack([free_b, prev[free_b], bnd.edges[free_b, 1]], axis=1)
     result = smooth(
-        domain, h, points, n_fixed=len(seeds), sliding=sliding, walls=bnd.edges, smoothing=smoothing,
-        max_iterations=max_iterations, callback=callback,
+        domain, _capped(h, domain.diameter), points, n_fixed=len(seeds), sliding=sliding,
+        walls=bnd.edges, smoothing=smoothing, max_iterations=max_iterations, callback=callback,
     )
     seconds["smoothing"] = time.perf_counter() - t
-    edges = boundary_edges(result.triangles)
-    # Boundary segments in output numbering; a segment whose node was dropped counts as lost.
-    new_index = np.full(len(points), -1)
-    old = result.kept >= 0
-    new_index[result.kept[old]] = np.flatnonzero(old)
-    walls = new_index[bnd.edges]
-    dropped = np.any(walls < 0, axis=1)
-    lost = len(missing_walls(result.triangles, walls[~dropped])) + int(dropped.sum())
-    if lost:
-        warnings.warn(
-            f"{lost} boundary segments are not edges of the mesh (a node sits too close to "
-            "them); the mesh does not follow the boundary there",
-            ConvergenceWarning,
-            stacklevel=3,
-        )
-    # Tag each boundary edge with the loop of its first node (boundary nodes come first; nodes
-    # added by repair have kept == -1 and are interior).
-    loop_of = np.full(len(points) + 1, -1)
-    loop_of[: len(bnd.node_loop)] = bnd.node_loop
-    tags = loop_of[result.kept][edges[:, 0]]
+    # The mesh's boundary edges are Step 1's segments (some split by recovery), tagged with the
+    # loop each came from; a valid mesh has exactly these as its boundary edges.
+    edges = result.walls
+    tags = bnd.node_loop[bnd.edges[result.wall_origin, 0]]
+    defects = mesh_defects(result.points, result.triangles, walls=edges, sdf=domain.sdf,
+                           diameter=domain.diameter)
+    if any(d.kind == "lost boundary segment" for d in defects):
+        # Report the mesh's actual boundary rather than segments it does not have.
+        edges = boundary_edges(result.triangles)
+        tags = _nearest_tags(result.points, edges, result.walls, tags)
 
     stats = MeshStats(
         method="injection",
@@ -235,6 +251,9 @@ def _injection(
         boundary_nodes=len(bnd.points),
         initial_nodes=len(points),
         seconds=seconds,
+        valid=not defects,
+        defects=tuple(defects),
+        unsettled=result.unsettled,
     )
     return Mesh(
         points=result.points,
@@ -244,3 +263,26 @@ def _injection(
         size=h,
         stats=stats,
     )
+
+
+def _nearest_tags(points: FloatArray, edges: NDArray[np.intp], walls: NDArray[np.intp],
+                  wall_tags: NDArray[np.intp]) -> NDArray[np.intp]:
+    """Tags for the boundary edges of an invalid mesh: those of the nearest segment."""
+    from scipy.spatial import cKDTree
+
+    ok = np.all(walls >= 0, axis=1)
+    if not ok.any():
+        return np.zeros(len(edges), dtype=np.intp)
+    mid = 0.5 * (points[walls[ok, 0]] + points[walls[ok, 1]])
+    _, k = cKDTree(mid).query(0.5 * (points[edges[:, 0]] + points[edges[:, 1]]))
+    return np.asarray(wall_tags[ok][k], dtype=np.intp)
+
+
+def _capped(h: Callable[[FloatArray], FloatArray], cap: float) -> Callable[[FloatArray], FloatArray]:
+    """h limited to ``cap`` (the domain's diameter): a larger size asks for nothing coarser than
+    the fewest nodes the boundary needs, and keeps every length the stages compute finite."""
+
+    def capped(p: FloatArray) -> FloatArray:
+        return np.minimum(h(p), cap)
+
+    return capped

@@ -394,9 +394,14 @@ def _star_ring(
 
 
 def _distance_to_rings(p: FloatArray, rings: Sequence[FloatArray]) -> FloatArray:
-    """Distance of each point to the nearest edge of any ring (chunked brute force)."""
+    """Distance of each point to the nearest edge of any closed ring."""
     a = np.concatenate(rings)
     b = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
+    return _distance_to_segments(p, a, b)
+
+
+def _distance_to_segments(p: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
+    """Distance of each point to the nearest of the segments a[k] b[k] (chunked brute force)."""
     out = np.empty(len(p))
     step = max(1, 2_000_000 // len(a))
     ab = b - a
@@ -677,7 +682,7 @@ def neck(
     n_holes: int = 0,
     size: float | None = None,
 ) -> Shape:
-    """Two lobes joined by a (possibly bent) channel narrower than ``width``.
+    """Two lobes joined by a smoothly bent channel narrower than ``width``.
 
     The channel's two sides are parallel offsets of one centre line; their perpendicular
     distance is ``2 * half_width * cos(slope) <= 2 * half_width`` with the full width
@@ -705,9 +710,11 @@ def neck(
         r1, r2 = rng.uniform(0.3, 0.45, 2)
         c1, c2 = -0.55, 0.55
         x0, x1 = c1 + math.sqrt(r1**2 - hw**2), c2 - math.sqrt(r2**2 - hw**2)
-        m = int(rng.integers(3, 9))
+        m = int(rng.integers(4, 12))
         xs = np.linspace(x0, x1, m + 2)
-        bend = np.concatenate([[0.0], rng.uniform(-0.05, 0.05, m), [0.0]])
+        # A smooth bend (zero at both ends) so the channel is a neck, not a row of sharp turns.
+        amp = rng.uniform(-1, 1) * min(0.04, 0.05 * (x1 - x0))  # slope <= 0.1 pi
+        bend = amp * np.sin(np.pi * int(rng.integers(1, 3)) * (xs - x0) / (x1 - x0))
         bottom = np.column_stack([xs, bend - hw])
         top = np.column_stack([xs[::-1], bend[::-1] + hw])
 
@@ -724,7 +731,7 @@ def neck(
         hl = _place_holes(rng, shell, n_holes, (0.05, 0.12), max(h, 0.05))
         if len(hl) < n_holes:
             return None
-        neck_width = float(_distance_to_rings(top[1:-1], [bottom]).min())
+        neck_width = float(_distance_to_segments(top, bottom[:-1], bottom[1:]).min())
         return Shape(shell, hl, family="neck", seed=seed, size=h,
                      params={"width": width, "neck_width": min(neck_width, 2 * hw),
                              "n_holes": n_holes})
@@ -870,7 +877,6 @@ def coastline(
         main = _normalise(_fractal_ring(rng, n_vertices, roughness, 1.0), 1.8)[0]
         islands: list[FloatArray] = []
         widths: list[float] = []
-        a = main
         for _ in range(20 * n_islands):
             if len(islands) == n_islands:
                 break
@@ -884,12 +890,12 @@ def coastline(
             anchor = 0.5 * (p + q)
             c = anchor + out * (r + target)
             for _ in range(8):  # slide the island along ``out`` until the strait is ``target``
-                gap = _signed_gap(isl + c, a)
+                gap = _signed_gap(isl + c, main)
                 if abs(gap - target) < 1e-3 * target:
                     break
                 c = c - out * (gap - target)
             cand = isl + c
-            gap = _signed_gap(cand, a)
+            gap = _signed_gap(cand, main)
             if not (0.5 * fraction[0] * strait <= gap < strait):
                 continue
             if islands and _distance_to_rings(cand, islands).min() < strait:
