@@ -368,7 +368,8 @@ def test_cli_signal_stops_cleanly(tmp_path, signum, status):
             proc.kill()
             proc.wait()
     assert proc.returncode == status, err
-    assert f"{signal.Signals(signum).name}: batch stopped" in err and "rerun the same command to resume" in err
+    assert f"{signal.Signals(signum).name}: batch stopped" in err
+    assert "rerun the same command to resume" in err
     rows = read_summary(out / "summary.csv")
     files = mesh_files(out)
     assert 1 <= len(rows) < 40 and sorted(files) == sorted(r.file for r in rows.values())
