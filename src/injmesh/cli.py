@@ -49,7 +49,7 @@ from .sizing import SizeLike
 PROG = "injmesh"
 log = logging.getLogger(__name__)
 PLOT_FORMATS = (".png", ".svg", ".pdf")
-COMMANDS = ("generate", "quality", "plot", "paper")
+COMMANDS = ("generate", "quality", "plot", "paper", "batch")
 
 
 class UsageError(Exception):
@@ -379,6 +379,7 @@ def build_parser() -> argparse.ArgumentParser:
     paper.add_argument("--progress", action="store_true",
                        help="draw progress bars on stderr even when it is not a terminal (by "
                        "default: bars on a terminal, one line per run otherwise; -q: none)")
+    _add_batch_parser(sub, common)
     return parser
 
 
@@ -569,11 +570,122 @@ def _paper(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
     return 0
 
 
+def _add_batch_parser(sub: Any, common: argparse.ArgumentParser) -> None:
+    from .batch import DEFAULT_FORMAT, FAMILIES, FORMATS
+
+    batch = sub.add_parser(
+        "batch", parents=[common], help="mesh many specs on a Dask cluster",
+        description="Mesh every spec of a JSON Lines file (or a random family) into DIR, on an "
+        "embedded Dask LocalCluster or on the cluster at --scheduler; DIR/summary.csv records "
+        "each spec, and rerunning the same command skips what is done (see injmesh.batch).",
+        epilog="exit status: 0 every mesh written; 1 invalid specs or another error; 3 the batch "
+        "finished but some specs failed or timed out (see the summary); 130 interrupted by "
+        "Ctrl-C, 143 by SIGTERM (rerun to resume).",
+    )
+    batch.add_argument("specs", nargs="?", metavar="SPECS.jsonl",
+                       help="one spec a line: {\"name\": ..., \"domain\": ..., \"size\": ... | "
+                       "\"nodes\": ..., \"format\": ...}")
+    batch.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    batch.add_argument("--family", choices=list(FAMILIES), metavar="FAMILY",
+                       help=f"instead of SPECS: random shapes of this family ({', '.join(FAMILIES)}; "
+                       "see injmesh.shapes), written to DIR/specs.jsonl")
+    batch.add_argument("--count", type=_positive_int, default=100, metavar="N",
+                       help="with --family: number of shapes (default 100)")
+    batch.add_argument("--seed", type=_positive_int, default=0, metavar="S",
+                       help="with --family: seed (default 0)")
+    batch.add_argument("--size", metavar="SIZE",
+                       help="with --family: h for every shape (number or expression in x, y)")
+    batch.add_argument("--nodes", type=_positive_int, metavar="N",
+                       help="with --family: about N nodes per mesh")
+    batch.add_argument("--format", choices=sorted(FORMATS), default=None,
+                       help=f"format of specs that give none (default {DEFAULT_FORMAT})")
+    batch.add_argument("--workers", type=_positive_int, metavar="N",
+                       help="worker processes of the embedded cluster (default: one per core; "
+                       "0: no Dask, one mesh after another in this process)")
+    batch.add_argument("--scheduler", metavar="ADDRESS",
+                       help="use the running Dask cluster at this scheduler (tcp://HOST:PORT)")
+    batch.add_argument("--timeout", type=_number, metavar="S", help="seconds allowed per spec")
+    batch.add_argument("--retry-failed", action="store_true",
+                       help="mesh again the specs that failed in an earlier run")
+    batch.add_argument("--progress", action="store_true",
+                       help="draw a progress bar on stderr even when it is not a terminal")
+
+
+def _batch(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
+    from .batch import (
+        DEFAULT_FORMAT,
+        BatchInterrupted,
+        SpecError,
+        load_specs,
+        mesh_many,
+        random_specs,
+        write_specs,
+    )
+
+    if (args.specs is None) == (args.family is None):
+        raise UsageError("give either SPECS.jsonl or --family")
+    if args.family is None and (args.size is not None or args.nodes is not None):
+        raise UsageError("--size and --nodes go with --family; a specs file gives them per spec")
+    if args.workers is not None and args.scheduler is not None:
+        raise UsageError("give either --workers (a new local cluster) or --scheduler, not both")
+    if args.timeout is not None and args.timeout <= 0:
+        raise UsageError(f"--timeout must be positive, got {args.timeout:g}")
+    out_dir = Path(args.out)
+    fmt = args.format or DEFAULT_FORMAT
+    try:
+        if args.family is not None:
+            size: Any = args.size
+            try:
+                size = float(size)
+            except (TypeError, ValueError):  # None, or an expression in x and y
+                pass
+            specs = random_specs(args.family, args.count, args.seed, size=size, nodes=args.nodes,
+                                 format=fmt)
+            out_dir.mkdir(parents=True, exist_ok=True)
+            write_specs(specs, out_dir / "specs.jsonl")  # the record of what was meshed
+        else:
+            specs = load_specs(args.specs, default_format=fmt)
+    except SpecError as exc:
+        err.write("".join(f"{PROG}: error: {line.strip()}\n" for line in str(exc).splitlines()[1:]
+                          or [str(exc)]))
+        return 1
+
+    show_bar = args.progress or (err.isatty() and not args.quiet)
+    bar = ProgressBar(err) if show_bar else None
+    try:
+        summary = mesh_many(specs, out_dir, client=args.scheduler, workers=args.workers,
+                            timeout=args.timeout, retry_failed=args.retry_failed, callback=bar)
+    except BatchInterrupted as exc:
+        if bar is not None:
+            bar.close()
+        s = exc.summary
+        err.write(f"{PROG}: {exc.signal_name}: batch stopped; {len(s.rows)} of {s.total} specs "
+                  f"finished, recorded in {s.path}; rerun the same command to resume\n")
+        return 128 + int(getattr(signal, exc.signal_name, signal.SIGINT))
+    finally:
+        if bar is not None:
+            bar.close()
+    counts = summary.counts
+    bad = [r for r in summary.rows if r.status != "ok"]
+    if not args.quiet:
+        for row in bad[:20]:
+            err.write(f"{PROG}: {row.name}: {row.status}: {row.message}\n")
+        if len(bad) > 20:
+            err.write(f"{PROG}: ... and {len(bad) - 20} more; see {summary.path}\n")
+        others = ", ".join(f"{n} {s}" for s, n in counts.items() if s != "ok")
+        out.write(f"{counts.get('ok', 0)} of {summary.total} meshes in {out_dir}"
+                  f"{f' ({others})' if others else ''}; {len(summary.computed)} meshed now, "
+                  f"{len(summary.reused)} up to date; {summary.seconds:.1f} s; "
+                  f"summary {summary.path}\n")
+    return 0 if summary.ok else 3
+
+
 _COMMANDS: dict[str, Callable[[argparse.Namespace, IO[str], IO[str]], int]] = {
     "generate": _generate,
     "quality": _quality,
     "plot": _plot,
     "paper": _paper,
+    "batch": _batch,
 }
 
 
