@@ -36,7 +36,7 @@ from scipy.spatial import cKDTree
 
 from . import _tolerances as tol
 from .errors import NodeBudgetError
-from .geometry import Domain, GeometryError
+from .geometry import BRep, Domain, GeometryError
 from .geometry.tracing import grid_spacing
 from .progress import Callback, report
 
@@ -158,7 +158,7 @@ def mesh_boundary(
         raise GeometryError("the domain has no boundary inside its bounding box")
     loops = _drop_tiny(order_loops(loops), h)
 
-    corners = domain.corners()
+    corners = np.concatenate([domain.corners(), _resolved_vertices(domain, h)])
     if len(fixed_points):
         dfix = domain.sdf(fixed_points)
         if np.any(dfix > on):
@@ -229,6 +229,33 @@ def _pin_wedges(h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_], nxt: IntArra
 SHARP_CORNER = 25.0
 #: Nodes of a sharp corner's walls are held still where the walls are closer than this times h.
 PIN_WIDTH = 0.8
+
+
+def _resolved_vertices(domain: Domain, h: SizeFn) -> FloatArray:
+    """Polygon vertices the mesh can resolve: both pieces at the vertex at least
+    ``VERTEX_ARM * h`` long.
+
+    A vertex turning less than ``CORNER_ANGLE`` is not a corner, but an outline with vertices
+    far apart (a CAD drawing, a coarse polygon) means its vertices: a chord across one would cut
+    the domain.  Only where the vertices are closer than h (a digitised curve) does the boundary
+    treat them as samples of a smooth curve.
+    """
+    brep = domain if isinstance(domain, BRep) else getattr(domain, "exact_brep", lambda: None)()
+    if brep is None:
+        return np.empty((0, 2))
+    pts, turn, before, after = brep.junctions()
+    # Smooth junctions (an arc continuing an arc, collinear segments) are no vertices.
+    kink = np.abs(turn) > VERTEX_TURN
+    pts, before, after = pts[kink], before[kink], after[kink]
+    if len(pts) == 0:
+        return np.empty((0, 2))
+    return np.asarray(pts[np.minimum(before, after) >= VERTEX_ARM * h(pts)], dtype=float)
+
+
+#: A polygon vertex turning by more than VERTEX_TURN degrees is a node when both its edges are
+#: at least VERTEX_ARM h long.
+VERTEX_ARM = 0.5
+VERTEX_TURN = 0.1
 
 
 def _drop_tiny(loops: list[FloatArray], h: SizeFn) -> list[FloatArray]:

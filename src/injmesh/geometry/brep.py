@@ -238,6 +238,28 @@ class BRep(Domain):
         w = self._tangents(False)[self._nxt]
         return np.degrees(np.arctan2(u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0], np.sum(u * w, axis=1)))
 
+    def junctions(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """Every point where two pieces meet.
+
+        Returns
+        -------
+        points : (k, 2) array
+            The junction, in global coordinates (the end of piece i, the start of the next).
+        turn : (k,) array
+            The turn there, degrees, left positive.
+        before, after : (k,) arrays
+            Lengths of the pieces that end and start there.
+
+        Examples
+        --------
+        >>> from injmesh import Rectangle
+        >>> p, turn, before, after = Rectangle((0, 0), (2, 1)).junctions()
+        >>> turn.round(1).tolist(), sorted(before.tolist())
+        ([90.0, 90.0, 90.0, 90.0], [1.0, 1.0, 2.0, 2.0])
+        """
+        length = np.where(self._sw != 0, self._r * np.abs(self._sw), np.hypot(*(self._p1 - self._p0).T))
+        return self._p1 + self._origin, self._turns(), length, length[self._nxt]
+
     def corners(self) -> FloatArray:
         """Junctions where the boundary turns by more than ``CORNER_ANGLE`` degrees, and the
         junctions of two arcs bending opposite ways (an S-bend, where the curvature jumps
