@@ -24,7 +24,7 @@ predicates of :mod:`injmesh.kernels.predicates`, so collinear input, cocircular 
 far offsets (1e9) give a valid triangulation.  Ties are broken by the order of operations,
 which is fixed: the output is bit-identical from run to run.  No kernel runs threads.
 
-Insertion order is the Hilbert curve order of the points; each point is located by a
+Insertion order is biased-randomized (BRIO rounds, each along a Hilbert curve); each point is located by a
 visibility walk from the last triangle created, inserted by a 1-3 split (2-4 on an edge) and
 made Delaunay by Lawson flips.  Removal re-triangulates the vertex's star by ear clipping with
 Delaunay ears; edge recovery follows Sloan's flip algorithm.
@@ -77,18 +77,18 @@ def _is_ghost(tri, t):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
-def _corner(row, v):  # type: ignore[no-untyped-def]
-    """Index 0..2 of value v in a 3-row (-1 when absent)."""
-    if row[0] == v:
+def _corner(arr, t, v):  # type: ignore[no-untyped-def]
+    """Index 0..2 of value v in row t of arr (-1 when absent)."""
+    if arr[t, 0] == v:
         return 0
-    if row[1] == v:
+    if arr[t, 1] == v:
         return 1
-    if row[2] == v:
+    if arr[t, 2] == v:
         return 2
     return -1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _push(stack, sp, val):  # type: ignore[no-untyped-def]
     if sp >= stack.shape[0]:
         grown = np.empty(2 * stack.shape[0] + 16, dtype=stack.dtype)
@@ -180,7 +180,7 @@ def _flip(tri, nbr, con, vt, t, k):  # type: ignore[no-untyped-def]
     b = tri[t, k1]
     c = tri[t, k2]
     u = nbr[t, k]
-    l = _corner(nbr[u], t)
+    l = _corner(nbr, u, t)
     l1 = (l + 1) % 3
     l2 = (l + 2) % 3
     d = tri[u, l]
@@ -233,7 +233,7 @@ def _edge_illegal(pts, tri, nbr, con, t, k):  # type: ignore[no-untyped-def]
     gu = _is_ghost(tri, u)
     if gt != gu:
         return False  # a hull edge: never flipped
-    d = tri[u, _corner(nbr[u], t)]
+    d = tri[u, _corner(nbr, u, t)]
     if gt:
         # Two ghosts share the edge (w, GHOST): flip when w is a reflex hull vertex, which
         # fills the notch with a real triangle (only where it is strictly counter-clockwise).
@@ -277,7 +277,7 @@ def _legalize_vertex(pts, tri, nbr, con, vt, p, stack, sp):  # type: ignore[no-u
     while sp > 0:
         sp -= 1
         t = stack[sp]
-        k = _corner(tri[t], p)
+        k = _corner(tri, t, p)
         if _edge_illegal(pts, tri, nbr, con, t, k):
             u = _flip(tri, nbr, con, vt, t, k)
             stack, sp = _push(stack, sp, t)
@@ -312,8 +312,9 @@ def _locate(pts, tri, nbr, meta, px, py, state):  # type: ignore[no-untyped-def]
         if t < 0:
             return -1, -1, -1
     if _is_ghost(tri, t):
-        t = nbr[t, _corner(tri[t], GHOST)]
+        t = nbr[t, _corner(tri, t, GHOST)]
     cap = 4 * meta[0] + 64
+    prev = -1
     for _ in range(cap):
         state[0] = (state[0] * 1103515245 + 12345) & 0x7FFFFFFF
         r = (state[0] >> 16) % 3
@@ -323,10 +324,13 @@ def _locate(pts, tri, nbr, meta, px, py, state):  # type: ignore[no-untyped-def]
         zk1 = -1
         for j in range(3):
             k = (r + j) % 3
+            if nbr[t, k] == prev:
+                continue  # the edge just crossed: the point is strictly on this side
             b = tri[t, (k + 1) % 3]
             c = tri[t, (k + 2) % 3]
             o = orient2d(pts[b, 0], pts[b, 1], pts[c, 0], pts[c, 1], px, py)
             if o < 0.0:
+                prev = t
                 t = nbr[t, k]
                 moved = True
                 break
@@ -340,7 +344,7 @@ def _locate(pts, tri, nbr, meta, px, py, state):  # type: ignore[no-untyped-def]
             if t < 0:
                 return -1, 3, -1
             if _is_ghost(tri, t):
-                return t, 3, _corner(tri[t], GHOST)
+                return t, 3, _corner(tri, t, GHOST)
             continue
         if zeros == 0:
             return t, 0, 0
@@ -382,7 +386,7 @@ def _locate_scan(pts, tri, meta, px, py):  # type: ignore[no-untyped-def]
     for t in range(meta[0]):
         if tri[t, 0] == DEAD or not _is_ghost(tri, t):
             continue
-        g = _corner(tri[t], GHOST)
+        g = _corner(tri, t, GHOST)
         v = tri[t, (g + 1) % 3]
         u = tri[t, (g + 2) % 3]
         if orient2d(pts[v, 0], pts[v, 1], pts[u, 0], pts[u, 1], px, py) > 0.0:
@@ -446,7 +450,7 @@ def _split_edge(tri, nbr, con, vt, meta, free, t, k, p):  # type: ignore[no-unty
     b = tri[t, k1]
     c = tri[t, k2]
     u = nbr[t, k]
-    l = _corner(nbr[u], t)
+    l = _corner(nbr, u, t)
     l1 = (l + 1) % 3
     l2 = (l + 2) % 3
     d = tri[u, l]
@@ -580,6 +584,40 @@ def _hilbert_keys(pts):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
+def _brio_keys(pts):  # type: ignore[no-untyped-def]
+    """Sort keys of a biased randomized insertion order (Amenta, Choi, Rote 2003).
+
+    Each point joins round r with probability 2^-(r+1) (the last round holds about half of
+    the points), the rounds are inserted from the smallest, and each round runs along the
+    Hilbert curve.  The early rounds spread over the whole domain, so later points land in
+    well-shaped triangles instead of slivers along a growing front.  The "random" draw is a
+    hash of the point's index: the order, hence the triangulation, is reproducible.
+    """
+    hk = _hilbert_keys(pts)
+    n = pts.shape[0]
+    rounds = 0
+    m = n
+    while m > 64:
+        m //= 2
+        rounds += 1
+    keys = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        # splitmix64 of the index
+        z = np.uint64(i) + np.uint64(0x9E3779B97F4A7C15)
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        z = z ^ (z >> np.uint64(31))
+        # r = number of leading one bits: P(r) = 2^-(r+1).
+        r = 0
+        bit = np.uint64(1) << np.uint64(63)
+        while r < rounds and (z & bit) != np.uint64(0):
+            r += 1
+            bit = bit >> np.uint64(1)
+        keys[i] = np.int64(rounds - r) * np.int64(1 << 32) + hk[i]
+    return keys
+
+
+@njit(cache=True)
 def _build(pts, order, tri, nbr, con, vt, meta, free, dup):  # type: ignore[no-untyped-def]
     """Insert the points in ``order`` into an empty structure; duplicates go to ``dup``.
 
@@ -693,7 +731,7 @@ def find_edge(tri, nbr, vt, i, j):  # type: ignore[no-untyped-def]
         return -1, -1
     t = t0
     for _ in range(tri.shape[0] + 1):
-        ki = _corner(tri[t], i)
+        ki = _corner(tri, t, i)
         if ki < 0:
             return -1, -1
         if tri[t, (ki + 1) % 3] == j:
@@ -705,7 +743,7 @@ def find_edge(tri, nbr, vt, i, j):  # type: ignore[no-untyped-def]
     # Compact arrays (no ghosts): the rotation may have stopped at the hull; go the other way.
     t = t0
     for _ in range(tri.shape[0] + 1):
-        ki = _corner(tri[t], i)
+        ki = _corner(tri, t, i)
         if tri[t, (ki + 1) % 3] == j:
             return t, (ki + 2) % 3
         t = nbr[t, (ki + 1) % 3]
@@ -764,7 +802,7 @@ def flip_edge(points, tri, nbr, constrained, vt, i, j):  # type: ignore[no-untyp
     a = tri[t, k]
     b = tri[t, (k + 1) % 3]
     c = tri[t, (k + 2) % 3]
-    d = tri[u, _corner(nbr[u], t)]
+    d = tri[u, _corner(nbr, u, t)]
     if _orient(points, a, b, d) <= 0.0 or _orient(points, a, d, c) <= 0.0:
         return ERR_NOT_CONVEX
     _flip(tri, nbr, constrained, vt, t, k)
@@ -807,7 +845,7 @@ def _star(tri, nbr, con, vt, v):  # type: ignore[no-untyped-def]
     t = t0
     for _ in range(tri.shape[0] + 1):
         deg += 1
-        kv = _corner(tri[t], v)
+        kv = _corner(tri, t, v)
         t = nbr[t, (kv + 1) % 3]
         if t == t0:
             break
@@ -822,7 +860,7 @@ def _star(tri, nbr, con, vt, v):  # type: ignore[no-untyped-def]
     t = t0
     spoke_constrained = False
     for i in range(deg):
-        kv = _corner(tri[t], v)
+        kv = _corner(tri, t, v)
         T[i] = t
         L[i] = tri[t, (kv + 1) % 3]
         O[i] = nbr[t, kv]
@@ -1087,7 +1125,7 @@ def recover_edge(points, tri, nbr, constrained, vt, i, j):  # type: ignore[no-un
         constrained[t, k] = 1
         u = nbr[t, k]
         if u >= 0:
-            constrained[u, _corner(nbr[u], t)] = 1
+            constrained[u, _corner(nbr, u, t)] = 1
         return OK
     # The triangle at i whose wedge holds j, then walk along the segment collecting the edges
     # it crosses, each as (left, right) of the directed line i -> j.
@@ -1095,7 +1133,7 @@ def recover_edge(points, tri, nbr, constrained, vt, i, j):  # type: ignore[no-un
     t = t0
     start = -1
     for _ in range(tri.shape[0] + 1):
-        ki = _corner(tri[t], i)
+        ki = _corner(tri, t, i)
         b = tri[t, (ki + 1) % 3]
         c = tri[t, (ki + 2) % 3]
         if b >= 0 and c >= 0:
@@ -1117,11 +1155,11 @@ def recover_edge(points, tri, nbr, constrained, vt, i, j):  # type: ignore[no-un
     qy = np.empty(16, dtype=np.int32)
     nq = 0
     cur = start
-    ki = _corner(tri[cur], i)
+    ki = _corner(tri, cur, i)
     left = tri[cur, (ki + 2) % 3]
     right = tri[cur, (ki + 1) % 3]
     for _ in range(tri.shape[0] + 1):
-        kc = 3 - _corner(tri[cur], left) - _corner(tri[cur], right)
+        kc = 3 - _corner(tri, cur, left) - _corner(tri, cur, right)
         if constrained[cur, kc] != 0:
             return ERR_CONSTRAINED
         qy, _ = _push(qy, nq, right)
@@ -1129,7 +1167,7 @@ def recover_edge(points, tri, nbr, constrained, vt, i, j):  # type: ignore[no-un
         nxt = nbr[cur, kc]
         if nxt < 0 or _is_ghost(tri, nxt):
             return ERR_LOOP
-        e = tri[nxt, _corner(nbr[nxt], cur)]
+        e = tri[nxt, _corner(nbr, nxt, cur)]
         cur = nxt
         if e == j:
             break
@@ -1164,7 +1202,7 @@ def recover_edge(points, tri, nbr, constrained, vt, i, j):  # type: ignore[no-un
         a = tri[t, k]
         b = tri[t, (k + 1) % 3]
         c = tri[t, (k + 2) % 3]
-        d = tri[u, _corner(nbr[u], t)]
+        d = tri[u, _corner(nbr, u, t)]
         tail = (head + count) % size
         if _orient(points, a, b, d) > 0.0 and _orient(points, a, d, c) > 0.0:
             _flip(tri, nbr, constrained, vt, t, k)
@@ -1184,7 +1222,7 @@ def recover_edge(points, tri, nbr, constrained, vt, i, j):  # type: ignore[no-un
         return ERR_LOOP
     constrained[t, k] = 1
     u = nbr[t, k]
-    constrained[u, _corner(nbr[u], t)] = 1
+    constrained[u, _corner(nbr, u, t)] = 1
     stack = np.empty(ncreated + 16, dtype=np.int32)
     sp = 0
     for s in range(0, ncreated, 2):
@@ -1235,11 +1273,11 @@ def _as_points(points: ArrayLike) -> FloatArray:
 
 
 def insertion_order(points: FloatArray) -> IntArray:
-    """The order in which points are inserted: along a Hilbert curve over their bounding box.
+    """The order in which points are inserted: BRIO rounds, each along a Hilbert curve.
 
     Consecutive points are close, so each walk from the last triangle is a few steps long.
     """
-    keys = _hilbert_keys(points)
+    keys = _brio_keys(points)
     return np.argsort(keys, kind="stable").astype(np.int32)
 
 
@@ -1450,7 +1488,7 @@ def delaunay(points: ArrayLike) -> NDArray[np.intp]:
     --------
     >>> import numpy as np
     >>> delaunay(np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 1.0], [1.0, 3.0]])).tolist()
-    [[1, 3, 2], [0, 1, 2], [2, 3, 0]]
+    [[0, 2, 3], [3, 2, 1], [1, 2, 0]]
     """
     return LiveTriangulation(points).triangles.astype(np.intp)
 

@@ -170,69 +170,27 @@ def _scale_expansion(e, elen, b, h):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _mul(e, elen, f, flen):  # type: ignore[no-untyped-def]
-    """The exact product e * f as a new expansion (array, length)."""
-    size = 2 * elen * flen + 1
-    acc = np.zeros(size)
-    nxt = np.empty(size)
-    part = np.empty(2 * elen + 1)
-    alen = 1  # acc = [0.0]
-    for j in range(flen):
-        plen = _scale_expansion(e, elen, f[j], part)
-        alen = _expansion_sum(acc, alen, part, plen, nxt)
-        acc, nxt = nxt, acc
-    return acc, alen
-
-
-@njit(cache=True)
-def _add(e, elen, f, flen):  # type: ignore[no-untyped-def]
-    h = np.empty(elen + flen + 1)
-    return h, _expansion_sum(e, elen, f, flen, h)
-
-
-@njit(cache=True)
-def _diff_expansion(a: float, b: float):  # type: ignore[no-untyped-def]
-    """a - b as an exact expansion of one or two components."""
-    x, y = _two_diff(a, b)
-    out = np.empty(2)
-    if y == 0.0:
-        out[0] = x
-        return out, 1
-    out[0] = y
-    out[1] = x
-    return out, 2
-
-
-@njit(cache=True)
-def _negate(e, elen):  # type: ignore[no-untyped-def]
-    for i in range(elen):
-        e[i] = -e[i]
-
-
-# ---------------------------------------------------------------------------------------------
-# orient2d
-
-
-@njit(cache=True)
 def _orient2d_exact(ax, ay, bx, by, cx, cy):  # type: ignore[no-untyped-def]
     acx, acxt = _two_diff(ax, cx)
     bcx, bcxt = _two_diff(bx, cx)
     acy, acyt = _two_diff(ay, cy)
     bcy, bcyt = _two_diff(by, cy)
     if acxt == 0.0 and bcxt == 0.0 and acyt == 0.0 and bcyt == 0.0:
-        # Stage B: the differences are exact, so acx*bcy - acy*bcx as a four-term expansion is
-        # the determinant itself.
+        # Stage B: the differences are exact, so acx*bcy - acy*bcx, as the four-term expansion
+        # of Shewchuk's two_two_diff (x3 largest), is the determinant itself.
         l1, l0 = _two_product(acx, bcy)
         r1, r0 = _two_product(acy, bcx)
-        left = np.empty(2)
-        right = np.empty(2)
-        left[0] = l0
-        left[1] = l1
-        right[0] = -r0
-        right[1] = -r1
-        h = np.empty(5)
-        n = _expansion_sum(left, 2, right, 2, h)
-        return h[n - 1]
+        i, x0 = _two_diff(l0, r0)
+        j, x1 = _two_sum(l1, i)
+        i, x1b = _two_diff(x1, r1)
+        x3, x2 = _two_sum(j, i)
+        if x3 != 0.0:
+            return x3
+        if x2 != 0.0:
+            return x2
+        if x1b != 0.0:
+            return x1b
+        return x0
     # Full exact evaluation from the coordinates themselves: the determinant is
     # ax*by - ay*bx + bx*cy - by*cx + cx*ay - cy*ax, a sum of six exact products.
     acc = np.zeros(13)
@@ -294,43 +252,83 @@ def orient2d(ax: float, ay: float, bx: float, by: float, cx: float, cy: float) -
 
 
 @njit(cache=True)
-def _cross(ax_e, axn, by_e, byn, bx_e, bxn, ay_e, ayn):  # type: ignore[no-untyped-def]
-    """ax * by - bx * ay for expansions."""
-    p, pn = _mul(ax_e, axn, by_e, byn)
-    q, qn = _mul(bx_e, bxn, ay_e, ayn)
-    _negate(q, qn)
-    return _add(p, pn, q, qn)
+def _diff_into(a, b, out):  # type: ignore[no-untyped-def]
+    """a - b as an exact expansion of one or two components written to out; returns its length."""
+    x, y = _two_diff(a, b)
+    if y == 0.0:
+        out[0] = x
+        return 1
+    out[0] = y
+    out[1] = x
+    return 2
 
 
 @njit(cache=True)
-def _lift(x_e, xn, y_e, yn):  # type: ignore[no-untyped-def]
-    """x^2 + y^2 for expansions."""
-    p, pn = _mul(x_e, xn, x_e, xn)
-    q, qn = _mul(y_e, yn, y_e, yn)
-    return _add(p, pn, q, qn)
+def _mul_into(e, elen, f, flen, h, tmp, part):  # type: ignore[no-untyped-def]
+    """h = e * f exactly, with scratch arrays tmp and part; returns len(h)."""
+    h[0] = 0.0
+    hlen = 1
+    for j in range(flen):
+        plen = _scale_expansion(e, elen, f[j], part)
+        tlen = _expansion_sum(h, hlen, part, plen, tmp)
+        for i in range(tlen):
+            h[i] = tmp[i]
+        hlen = tlen
+    return hlen
 
 
 @njit(cache=True)
 def _incircle_exact(ax, ay, bx, by, cx, cy, dx, dy):  # type: ignore[no-untyped-def]
-    # The differences to d as exact expansions (one term when the subtraction was exact).
-    adx, adxn = _diff_expansion(ax, dx)
-    ady, adyn = _diff_expansion(ay, dy)
-    bdx, bdxn = _diff_expansion(bx, dx)
-    bdy, bdyn = _diff_expansion(by, dy)
-    cdx, cdxn = _diff_expansion(cx, dx)
-    cdy, cdyn = _diff_expansion(cy, dy)
-    bc, bcn = _cross(bdx, bdxn, cdy, cdyn, cdx, cdxn, bdy, bdyn)
-    ca, can = _cross(cdx, cdxn, ady, adyn, adx, adxn, cdy, cdyn)
-    ab, abn = _cross(adx, adxn, bdy, bdyn, bdx, bdxn, ady, adyn)
-    al, aln = _lift(adx, adxn, ady, adyn)
-    bl, bln = _lift(bdx, bdxn, bdy, bdyn)
-    cl, cln = _lift(cdx, cdxn, cdy, cdyn)
-    ta, tan = _mul(al, aln, bc, bcn)
-    tb, tbn = _mul(bl, bln, ca, can)
-    tc, tcn = _mul(cl, cln, ab, abn)
-    s, sn = _add(ta, tan, tb, tbn)
-    det, detn = _add(s, sn, tc, tcn)
-    return det[detn - 1]
+    # One workspace for the whole evaluation: the exact stage runs on every cocircular quad of
+    # a lattice, where one allocation per expansion would dominate the cost.
+    w = np.empty(8192)
+    d = w[0:12]  # the six differences to d, two slots each
+    n = np.empty(6, dtype=np.int64)
+    n[0] = _diff_into(ax, dx, d[0:2])
+    n[1] = _diff_into(ay, dy, d[2:4])
+    n[2] = _diff_into(bx, dx, d[4:6])
+    n[3] = _diff_into(by, dy, d[6:8])
+    n[4] = _diff_into(cx, dx, d[8:10])
+    n[5] = _diff_into(cy, dy, d[10:12])
+    s1 = w[16:48]
+    s2 = w[48:80]
+    part = w[80:144]
+    tmp = w[144:2192]
+    cross = w[2192:2288]  # bc, ca, ab: 32 slots each
+    lift = w[2288:2384]  # alift, blift, clift
+    terms = w[2384:4184]  # three products of up to 512 components: 600 slots each
+    acc = w[4184:5384]
+    det = w[5384:7000]
+    ncross = np.empty(3, dtype=np.int64)
+    nlift = np.empty(3, dtype=np.int64)
+    for r in range(3):
+        # Rows a, b, c: x = 2r, y = 2r+1; cross of rows (r+1, r+2): x1*y2 - x2*y1.
+        i1 = (r + 1) % 3
+        i2 = (r + 2) % 3
+        x1 = d[4 * i1 : 4 * i1 + 2]
+        y1 = d[4 * i1 + 2 : 4 * i1 + 4]
+        x2 = d[4 * i2 : 4 * i2 + 2]
+        y2 = d[4 * i2 + 2 : 4 * i2 + 4]
+        pn = _mul_into(x1, n[2 * i1], y2, n[2 * i2 + 1], s1, tmp, part)
+        qn = _mul_into(x2, n[2 * i2], y1, n[2 * i1 + 1], s2, tmp, part)
+        for i in range(qn):
+            s2[i] = -s2[i]
+        ncross[r] = _expansion_sum(s1, pn, s2, qn, cross[32 * r : 32 * r + 32])
+        xr = d[4 * r : 4 * r + 2]
+        yr = d[4 * r + 2 : 4 * r + 4]
+        pn = _mul_into(xr, n[2 * r], xr, n[2 * r], s1, tmp, part)
+        qn = _mul_into(yr, n[2 * r + 1], yr, n[2 * r + 1], s2, tmp, part)
+        nlift[r] = _expansion_sum(s1, pn, s2, qn, lift[32 * r : 32 * r + 32])
+    # det = alift * (b x c) + blift * (c x a) + clift * (a x b)
+    nterm = np.empty(3, dtype=np.int64)
+    for r in range(3):
+        nterm[r] = _mul_into(
+            lift[32 * r : 32 * r + 32], nlift[r], cross[32 * r : 32 * r + 32], ncross[r],
+            terms[600 * r : 600 * r + 600], tmp, part,
+        )
+    na = _expansion_sum(terms[0:600], nterm[0], terms[600:1200], nterm[1], acc)
+    nd = _expansion_sum(acc, na, terms[1200:1800], nterm[2], det)
+    return det[nd - 1]
 
 
 @njit(cache=True)
@@ -396,7 +394,9 @@ def _rows(x: NDArray[np.float64], name: str) -> NDArray[np.float64]:
     return arr
 
 
-def orient2d_many(a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[np.float64]) -> NDArray[np.float64]:
+def orient2d_many(
+    a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """``orient2d`` row by row over ``(k, 2)`` arrays; the signs are exact.
 
     Examples
