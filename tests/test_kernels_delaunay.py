@@ -465,3 +465,28 @@ def test_recover_edge_blocked_by_a_vertex() -> None:
     live.recover_edge(0, 7)
     live.recover_edge(1, 32)  # a knight's-move direction: crosses edges, hits no vertex
     assert_live(live, delaunay_skip={tuple(e) for e in live.constrained_edges.tolist()})
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    st.lists(st.tuples(st.integers(0, 5), st.integers(0, 5)), min_size=6, max_size=30, unique=True),
+    st.lists(
+        st.tuples(st.booleans(), st.integers(0, 40), st.integers(-1, 6), st.integers(-1, 6)), max_size=15
+    ),
+)
+def test_random_insertions_and_removals_on_a_grid(coords, ops) -> None:  # type: ignore[no-untyped-def]
+    """Many ties (collinear hull runs, cocircular squares): every state valid and Delaunay."""
+    p = np.array(coords, dtype=float) * 0.5 + 1e9
+    if np.linalg.matrix_rank(p[1:] - p[0]) < 2:
+        return
+    live = LiveTriangulation(p)
+    for remove, v, x, y in ops:
+        if remove:
+            alive = np.flatnonzero(live.arrays()[4] >= 0)
+            try:
+                live.remove(int(alive[v % len(alive)]))
+            except DelaunayError as exc:
+                assert "no triangle" in str(exc)
+        else:
+            live.insert([x * 0.5 + 1e9, y * 0.5 + 1e9])
+        assert_live(live)

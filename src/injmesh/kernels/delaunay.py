@@ -971,15 +971,6 @@ def remove_vertex(points, tri, nbr, constrained, vt, meta, free, v):  # type: ig
         for i in range(deg - 1):
             chain[i] = L[(g + 1 + i) % deg]
         nch = deg - 1
-        if nch == 2:
-            # v had one real triangle: its far edge becomes a hull edge, unless nothing real
-            # lies beyond it.
-            far = -1
-            for i in range(deg):
-                if L[i] == chain[0] and L[i + 1] == chain[1]:
-                    far = O[i]
-            if far < 0 or _is_ghost(tri, far):
-                return ERR_DEGENERATE
         while nch > 2:
             ear = -1
             for i in range(1, nch - 1):
@@ -1036,6 +1027,15 @@ def remove_vertex(points, tri, nbr, constrained, vt, meta, free, v):  # type: ig
             for j in range(ear, nch - 1):
                 chain[j] = chain[j + 1]
             nch -= 1
+        if count == 0:
+            # No ear: the chain is the new hull.  If nothing real lies beyond it either, the
+            # remaining points are collinear and no triangle would be left.
+            beyond = False
+            for i in range(deg):
+                if L[i] >= 0 and L[i + 1] >= 0 and not _is_ghost(tri, O[i]):
+                    beyond = True
+            if not beyond:
+                return ERR_DEGENERATE
         for i in range(nch - 1):
             # Hull edge chain[i+1] -> chain[i] (the mesh is on the far side of the chain from v).
             nt[count, 0] = chain[i]
