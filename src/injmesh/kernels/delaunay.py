@@ -8,7 +8,9 @@ Triangles are rows of three arrays sized to a capacity:
 * ``nbr (cap, 3) int32`` -- ``nbr[t, k]`` is the triangle across the edge opposite corner k,
   i.e. the edge ``(tri[t, k+1], tri[t, k+2])`` (indices mod 3);
 * ``con (cap, 3) uint8`` -- 1 where that edge is constrained (never flipped);
-* ``vt (n,) int32`` -- one triangle incident to each vertex (-1: vertex not in the mesh).
+* ``vt (n,) int32`` -- one triangle incident to each vertex (-1: vertex not in the mesh);
+* ``meta (4,) int64`` -- rows in use, free rows, the walk's start triangle, spare;
+* ``free (cap,) int32`` -- a stack of freed rows (removal frees two rows, insertion takes two).
 
 Internally the convex hull is closed by *ghost triangles*: each hull edge u -> v (interior on
 its left) has a ghost ``(v, u, GHOST)`` whose third vertex is a virtual vertex at infinity
@@ -16,18 +18,21 @@ its left) has a ghost ``(v, u, GHOST)`` whose third vertex is a virtual vertex a
 ends in a ghost, and insertion outside the hull is an ordinary split.  A ghost's "circumcircle"
 is the open half-plane beyond its hull edge, which makes Lawson's flip rule hold unchanged on
 the hull (a reflex hull vertex is filled by flipping the ghost-ghost edge at it).  Free rows
-hold ``DEAD = -2``.  :func:`compact` turns the structure into the public convention: only the
-real triangles, with ``-1`` for a neighbour beyond the hull.
+hold ``DEAD = -2``.  ``_compact`` turns the structure into the public convention: only the real
+triangles, with ``-1`` for a neighbour beyond the hull.  :class:`LiveTriangulation` owns the
+arrays and grows them; the kernels never allocate rows themselves.
 
 Every decision -- walk steps, on-edge and duplicate tests, flips, ears -- uses the exact
 predicates of :mod:`injmesh.kernels.predicates`, so collinear input, cocircular lattices and
 far offsets (1e9) give a valid triangulation.  Ties are broken by the order of operations,
 which is fixed: the output is bit-identical from run to run.  No kernel runs threads.
 
-Insertion order is biased-randomized (BRIO rounds, each along a Hilbert curve); each point is located by a
-visibility walk from the last triangle created, inserted by a 1-3 split (2-4 on an edge) and
-made Delaunay by Lawson flips.  Removal re-triangulates the vertex's star by ear clipping with
-Delaunay ears; edge recovery follows Sloan's flip algorithm.
+Insertion order is biased-randomized (BRIO rounds, each along a Hilbert curve); each point is
+located by a visibility walk from the last triangle created, inserted by a 1-3 split (2-4 on
+an edge) and made Delaunay by Lawson flips.  Removal re-triangulates the vertex's star by ear
+clipping with Delaunay ears (O(degree^3): meant for mesh vertices of small degree); edge
+recovery follows Sloan's flip algorithm (S. W. Sloan, "A fast algorithm for generating
+constrained Delaunay triangulations", Computers & Structures 47, 1993).
 
 Examples
 --------
@@ -53,7 +58,8 @@ OK = 0
 ERR_COLLINEAR = -1  # fewer than three distinct, non-collinear points
 ERR_NOT_FOUND = -2  # the vertex or edge is not in the triangulation
 ERR_CONSTRAINED = -3  # the operation would flip or remove a constrained edge
-ERR_BLOCKED = -4  # a vertex lies on the segment to recover
+# recover_edge returns -(10 + w) when vertex w lies on the segment to recover;
+# flip_to_delaunay returns -(10 + t) when triangle row t is inverted.
 ERR_DEGENERATE = -5  # the operation would leave no triangle
 ERR_LOOP = -6  # an iteration cap was reached (the structure is not a valid triangulation)
 ERR_NOT_CONVEX = -7  # the quadrilateral around the edge is not strictly convex
