@@ -774,19 +774,22 @@ def flip_to_delaunay(points, tri, nbr, constrained, vt):  # type: ignore[no-unty
             continue
         if _orient(points, tri[t, 0], tri[t, 1], tri[t, 2]) <= 0.0:
             return -(10 + t)
-    stack = np.empty(3 * m + 16, dtype=np.int32)
-    sp = 0
-    for t in range(m - 1, -1, -1):
+    # One sweep over the rows in memory order; a flip's four outer edges go on a small stack
+    # that is emptied at once.  An edge swept earlier changes only through a flip, which
+    # re-checks it, so every edge is locally Delaunay at the end.
+    stack = np.empty(256, dtype=np.int32)
+    cap = 50 * m + 1000
+    flips = 0
+    for t in range(m):
         if tri[t, 0] == DEAD:
             continue
-        for k in range(2, -1, -1):
-            u = nbr[t, k]
-            if u > t:
-                stack[sp] = 3 * t + k
-                sp += 1
-    stack, flips = _legalize(points, tri, nbr, constrained, vt, stack, sp, 50 * m + 1000)
-    if flips < 0:
-        return ERR_LOOP
+        for k in range(3):
+            if nbr[t, k] > t and _edge_illegal(points, tri, nbr, constrained, t, k):
+                stack[0] = 3 * t + k
+                stack, f = _legalize(points, tri, nbr, constrained, vt, stack, 1, cap - flips)
+                if f < 0:
+                    return ERR_LOOP
+                flips += f
     return flips
 
 
