@@ -50,6 +50,7 @@ live.move(live.points + 1e-6)
 live.flip_to_delaunay()
 live.flip(*live.triangles[0, :2].tolist())
 live.recover_edge(0, 1)
+live.renumber_rows()
 t2 = time.perf_counter()
 timings = (t1 - t0, t2 - t1)
 """
@@ -120,20 +121,22 @@ def main(argv: list[str] | None = None) -> int:
     inner = np.all((lattice > g[0]) & (lattice < g[-1]), axis=1)
     lattice[inner] += rng.uniform(-0.05, 0.05, (inner.sum(), 2)) / side
     print(f"flip_to_delaunay after moving every point by up to {args.move} x the mean spacing (N = {n})")
-    print(f"  {'points':<28} {'build s':>8} {'flip pass s':>12}  result")
-    for name, p in (("random", rng.random((n, 2))), ("jittered square lattice", lattice)):
-        build, live = timed(lambda p=p: LiveTriangulation(p), 1)
+    print(f"  {'points':<28} {'rows':<10} {'build s':>8} {'renumber s':>11} {'flip pass s':>12}  result")
+    cases = (("random", rng.random((n, 2)), slice(None)), ("jittered square lattice", lattice, inner))
+    for name, p, free in cases:
         moved = p.copy()
-        free = inner if name.startswith("jittered") else slice(None)
         moved[free] += rng.uniform(-args.move * spacing, args.move * spacing, size=moved[free].shape)
-        live.move(moved)
-        t = time.perf_counter()
-        try:
-            result = f"{live.flip_to_delaunay()} flips"
-        except InvertedTriangleError as exc:
-            result = f"{exc}: reported, the caller rebuilds"
-        dt = time.perf_counter() - t
-        print(f"  {name:<28} {build:8.3f} {dt:12.3f}  {result}")
+        for rows in ("as built", "renumbered"):
+            build, live = timed(lambda p=p: LiveTriangulation(p), 1)
+            renumber = timed(live.renumber_rows, 1)[0] if rows == "renumbered" else 0.0
+            live.move(moved)
+            t = time.perf_counter()
+            try:
+                result = f"{live.flip_to_delaunay()} flips"
+            except InvertedTriangleError as exc:
+                result = f"{exc}: reported, the caller rebuilds"
+            dt = time.perf_counter() - t
+            print(f"  {name:<28} {rows:<10} {build:8.3f} {renumber:11.3f} {dt:12.3f}  {result}")
     return 0
 
 

@@ -490,3 +490,22 @@ def test_random_insertions_and_removals_on_a_grid(coords, ops) -> None:  # type:
         else:
             live.insert([x * 0.5 + 1e9, y * 0.5 + 1e9])
         assert_live(live)
+
+
+def test_renumber_rows_keeps_the_triangulation() -> None:
+    rng = np.random.default_rng(17)
+    p = rng.random((300, 2))
+    live = LiveTriangulation(p)
+    for v in (5, 9, 100):
+        live.remove(v)  # free rows inside the arrays
+    before = canonical(live.triangles)
+    live.renumber_rows()
+    assert canonical(live.triangles) == before
+    assert_live(live)
+    # Still live: insert, remove, move and flip.
+    v = live.insert([0.5, 0.5])
+    live.remove(7)
+    live.move(live.points + rng.uniform(-1e-4, 1e-4, size=(live.n_points, 2)))
+    live.flip_to_delaunay()
+    assert_live(live)
+    assert v in live.triangles
