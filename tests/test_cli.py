@@ -322,8 +322,12 @@ def test_progress_bar_rendering():
 def test_paper_subcommand(tmp_path, capsys, monkeypatch):
     calls = []
 
-    def fake_run(out_dir, *, quick, progress):
-        calls.append((out_dir, quick, progress))
+    def fake_run(out_dir, *, quick, callback):
+        calls.append((out_dir, quick))
+        if callback is not None:
+            callback(Progress("Table 1", 0, 1, {"item": "distmesh unit_disc h0=0.2 seed=1"}))
+            callback(Progress("Table 1", 1, 1, {"item": "distmesh unit_disc h0=0.2 seed=1",
+                                                "result": "N 11"}))
         out_dir.mkdir()
         (out_dir / "report.md").write_text("# report\n")
         return out_dir / "report.md"
@@ -331,8 +335,106 @@ def test_paper_subcommand(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "injmesh.paper", types.SimpleNamespace(run=fake_run))
     status, out, err = run(capsys, "paper", "--out", tmp_path / "res", "--quick")
     assert status == 0, err
-    assert calls == [(tmp_path / "res", True, False)]
+    assert calls == [(tmp_path / "res", True)]
     assert "report.md" in out
+    # Not a terminal: one plain line per step, no carriage returns.
+    assert "Table 1 1/1: distmesh unit_disc h0=0.2 seed=1: N 11" in err and "\r" not in err
+    status, out, err = run(capsys, "paper", "--out", tmp_path / "res2", "-q")
+    assert status == 0 and out == "" and err == ""
+
+
+def test_paper_progress_from_the_real_run(tmp_path, capsys, monkeypatch):
+    """Progress of a real (tiny) paper run: a line per table and per figure, or bars."""
+    import functools
+
+    import injmesh.paper
+
+    tiny = functools.partial(injmesh.paper.run, cases=[], runs=1, distmesh_h0_scale=4)
+    monkeypatch.setattr(injmesh.paper, "run", tiny)
+    status, out, err = run(capsys, "paper", "--out", tmp_path / "plain", "--quick")
+    assert status == 0, err
+    lines = err.splitlines()
+    assert lines[0].startswith("injmesh paper: meshing")
+    for group in ("Table 1 1/4:", "Table 2 1/1:", "Table 4 1/2:", "Figures 3/3:"):
+        assert any(group in line for line in lines), group
+    assert "skipped (quick run)" in err and "first look:" in out
+    status, _, err = run(capsys, "paper", "--out", tmp_path / "bars", "--quick", "--progress")
+    assert status == 0
+    assert "\r" in err and "[####" in err and "done" in err
+    bars = [line for line in err.split("\n") if line.strip()]
+    assert any(b.rsplit("\r", 1)[-1].startswith("Table 2 ") for b in bars)
+
+
+WKT_300 = "POLYGON ((" + ", ".join(
+    f"{2 + 1.5 * np.cos(a):.6f} {1 + 1.5 * np.sin(a):.6f}"
+    for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)
+) + ", 3.500000 1.000000))"
+
+
+def test_wkt_longer_than_a_file_name(tmp_path, capsys):
+    assert len(WKT_300) > 300
+    out = tmp_path / "wkt.npz"
+    status, stdout, err = run(capsys, "generate", WKT_300, "--size", "0.4", "-o", out)
+    assert status == 0, err
+    mesh = injmesh.read(out)
+    expected = injmesh.generate(WKT_300, 0.4)
+    assert mesh.n_points == expected.n_points and np.allclose(mesh.points, expected.points)
+    # GeoJSON text too, and an invalid long WKT is a WKT error, not "File name too long".
+    geojson = json.dumps({"type": "Polygon", "coordinates": [SHELL]})
+    status, _, err = run(capsys, "generate", geojson, "--size", "0.5", "-o", tmp_path / "g.npz")
+    assert status == 0, err
+    status, _, err = run(capsys, "generate", WKT_300.replace("))", ")"), "--size", "0.4", "-o",
+                         tmp_path / "bad.npz")
+    assert status == 1 and "WKT" in err and "too long" not in err
+
+
+SLOW_WRITE = """
+import pathlib, sys, time
+import injmesh.io as io
+
+original = io._write_meshio
+
+
+def slow(meshio, mesh, tmp, fmt):
+    original(meshio, mesh, tmp, fmt)      # the temporary file exists, the target not yet
+    pathlib.Path(sys.argv[1]).write_text("writing")
+    time.sleep(120)
+
+
+io._write_meshio = slow
+from injmesh.cli import main
+sys.exit(main(["generate", "unit_disc", "--size", "0.3", "-o", sys.argv[2]]))
+"""
+
+
+@pytest.mark.parametrize(("signame", "status"), [("SIGTERM", 143), ("SIGINT", 130)])
+def test_signal_while_writing_leaves_nothing(tmp_path, signame, status):
+    import os
+    import signal
+    import time
+
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    marker = tmp_path / "marker"
+    env = {**os.environ, "PYTHONPATH": str(Path(injmesh.__file__).parents[1])}
+    proc = subprocess.Popen(
+        [sys.executable, "-c", SLOW_WRITE, str(marker), str(out_dir / "disc.msh")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while not marker.exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert marker.exists(), proc.communicate(timeout=5)
+        assert any(out_dir.iterdir()), "the temporary file should exist while writing"
+        proc.send_signal(getattr(signal, signame))
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == status, err
+    assert "no partial file left behind" in err and "Traceback" not in err
+    assert list(out_dir.iterdir()) == [], "no partial or hidden temporary file"
 
 
 def test_verbose_logs_to_stderr(tmp_path, capsys):

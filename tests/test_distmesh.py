@@ -146,8 +146,14 @@ def test_iteration_cap_and_progress():
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         mesh = injmesh.generate(DISC.geometry, DISC.size, method="distmesh", h0=0.04, seed=1,
-                                max_iterations=5, callback=events.append)
+                                max_iterations=5, callback=events.append, strict=False)
     assert not mesh.converged and mesh.stats.iterations == 5
+    # Five steps leave slivers: strict=False returns the mesh flagged, naming them and where.
+    assert not mesh.stats.valid
+    assert {d.kind for d in mesh.stats.defects} == {"degenerate triangle (q < 0.001)"}
+    assert all(len(d.where) == min(d.count, 10) for d in mesh.stats.defects)
+    with pytest.raises(injmesh.MeshError, match="degenerate triangle"):
+        injmesh.generate(DISC.geometry, DISC.size, method="distmesh", h0=0.04, seed=1, max_iterations=5)
     assert any(issubclass(w.category, ConvergenceWarning) for w in caught)
     assert [e.step for e in events] == [1, 2, 3, 4, 5]
     assert {e.stage for e in events} == {"distmesh"}

@@ -341,41 +341,6 @@ def test_bbox_missing_part_of_domain() -> None:
         dom.boundary_loops(0.05)
 
 
-@pytest.mark.parametrize("n_vertices", [4, 7, 100])
-def test_polygon_distance_paths_agree(n_vertices: int) -> None:
-    """Polygons with up to 64 edges use a loop over edges, larger ones a chunked
-    (points x edges) computation: both match a plain reference for distance, nearest point
-    and inside flag."""
-    rng = np.random.default_rng(n_vertices)
-    ang = np.linspace(0, 2 * np.pi, n_vertices, endpoint=False)
-    r = rng.uniform(0.5, 1.0, n_vertices)
-    poly = Polygon(np.stack([r * np.cos(ang), r * np.sin(ang)], axis=1))
-    edges_mid = 0.5 * (poly.vertices + np.roll(poly.vertices, -1, axis=0))
-    q = np.concatenate([rng.uniform(-1.2, 1.2, (3000, 2)), poly.vertices, edges_mid])
-    ref = _reference_nearest(poly, q)
-    off = ref[0] > 1e-12  # on the boundary the even-odd flag may go either way
-    for got in (poly._nearest(q), poly._nearest_by_edge(q)):
-        assert np.allclose(got[0], ref[0], atol=1e-12)
-        assert np.allclose(got[1], ref[1], atol=1e-12)
-        assert np.array_equal(got[2][off], ref[2][off])
-
-
-def _reference_nearest(poly: Polygon, q: np.ndarray):
-    a, b = poly._a, poly._b
-    ab = b - a
-    t = np.clip(np.einsum("nmk,mk->nm", q[:, None, :] - a, ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
-    foot = a + t[..., None] * ab
-    d2 = np.sum((q[:, None, :] - foot) ** 2, axis=2)
-    k = np.argmin(d2, axis=1)
-    rows = np.arange(len(q))
-    y = q[:, None, 1]
-    crosses = (a[:, 1] > y) != (b[:, 1] > y)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        xint = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
-    inside = np.count_nonzero(crosses & (q[:, None, 0] < xint), axis=1) % 2 == 1
-    return np.sqrt(d2[rows, k]), foot[rows, k], inside
-
-
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_csg_projection_lands_on_the_boundary_near_corners(name: str) -> None:
     """Random points, and points scattered around every corner (inside and out), project onto

@@ -105,6 +105,8 @@ def test_injection_reports_layers() -> None:
     _inject(Rectangle((0, 0), (1, 1)), 0.1, callback=events.append)
     assert events and all(e.stage == "injection" for e in events)
     steps = [e.step for e in events]
-    assert steps == list(range(1, len(steps) + 1))
+    # One event per layer, then a last one at the layer cap: the progress ends at 100 %.
+    assert steps[:-1] == list(range(1, len(steps)))
+    assert steps[-1] == events[-1].total > steps[-2]
     nodes = [e.info["nodes"] for e in events]
     assert nodes == sorted(nodes)

@@ -379,3 +379,58 @@ def test_graded_size_stays_between_its_bounds(x, y, size_min, growth, extra):
     domain = Rectangle((-1, -1), (2, 1)) - Circle((0.5, 0), 0.3)
     h = graded_size(domain, size_min, growth, size_min + extra)(np.array([[x, y]]))[0]
     assert size_min <= h <= size_min + extra + 1e-12
+
+
+# --- bounded readers (issue 8: a header must not make the reader allocate without bound) -----
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("1000000000000 2 0 0\n1 0 0\n2 1 0\n3 0 1\n", "announces 1000000000000"),
+        ("3 2 0 0\n1 0 0\n2 1 0\n3 0 1\n1000000000000 0\n1 1 2\n", "segment section announces"),
+        ("3 2 0 0\n1 0 0\n2 1 0\n3 0 1\n3 0\n1 1 2\n2 2 3\n3 3 1\n1000000000000\n", "hole section"),
+        ("1e300 2 0 0\n1 0 0\n", r"announces 1e\+300 lines"),
+        ("-3 2 0 0\n1 0 0\n", "whole number"),
+        ("2.5 2 0 0\n1 0 0\n", "whole number"),
+        ("3 2 0 0\n1 0 0\n2 1 0\n3 0 1\n3 0\n1 1 2\n2 2 3\n3 3 1\n1\n1 0.2\n", "hole lines"),
+    ],
+)
+def test_poly_counts_checked_against_the_file(tmp_path, text, match):
+    import tracemalloc
+
+    path = tmp_path / "huge.poly"
+    path.write_text(text)
+    tracemalloc.start()
+    try:
+        with pytest.raises(ValueError, match=match):
+            read_poly(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 10_000_000, f"the reader allocated {peak} bytes for a {len(text)}-byte file"
+
+
+def test_node_file_count_checked(tmp_path):
+    (tmp_path / "a.poly").write_text("0 2 0 0\n3 0\n1 1 2\n2 2 3\n3 3 1\n0\n")
+    (tmp_path / "a.node").write_text("1000000000000 2 0 0\n1 0 0\n2 1 0\n3 0 1\n")
+    with pytest.raises(ValueError, match="announces 1000000000000 vertices"):
+        read_poly(tmp_path / "a.poly")
+
+
+def test_load_domain_never_treats_geometry_text_as_a_path(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    wkt = "POLYGON ((" + ", ".join(f"{np.cos(a):.6f} {np.sin(a):.6f}" for a in angles) + "))"
+    assert len(wkt) > 300
+    disc = load_domain(wkt)
+    assert disc.name == "wkt" and area(disc.domain) == pytest.approx(np.pi, rel=0.02)
+    with pytest.raises(ValueError, match="WKT") as info:
+        load_domain(wkt[:-1])  # malformed: a WKT error, never "File name too long"
+    assert not isinstance(info.value, OSError)
+    square = load_domain("POLYGON ((0 0, 1 0, 1 1, 0 1))" + " " * 300)
+    assert square.name == "wkt" and inside(square.domain, [[0.5, 0.5]])[0]
+    geojson = load_domain(json.dumps({"type": "Polygon", "coordinates": [SHELL]}))
+    assert geojson.name == "geojson" and area(geojson.domain) == pytest.approx(12, rel=0.01)
+    with pytest.raises(FileNotFoundError):
+        load_domain("x" * 5000 + ".geojson")

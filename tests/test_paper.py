@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from injmesh.paper import run
@@ -14,11 +15,16 @@ KEYS = {"table", "case", "method", "h0", "seed", "N", "iterations", "q_min", "q_
 PNG = b"\x89PNG\r\n\x1a\n"
 
 
+EVENTS: list = []
+
+
 @pytest.fixture(scope="module")
 def small_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, str]:
     """One L-shape case, two repeated runs, every DistMesh h0 three times coarser."""
     out = tmp_path_factory.mktemp("paper") / "out"
-    report = run(out, quick=True, cases=["l_shape"], runs=2, distmesh_h0_scale=3)
+    EVENTS.clear()
+    report = run(out, quick=True, cases=["l_shape"], runs=2, distmesh_h0_scale=3,
+                 callback=EVENTS.append)
     return out, report, report.read_text()
 
 
@@ -70,21 +76,55 @@ def test_report_content(small_run):
     assert "disagree with the paper" in text
 
 
-def test_progress_bar_only_when_asked(tmp_path, capsys):
+def test_progress_events_per_table_and_figure(small_run, tmp_path, capsys):
+    events = EVENTS
+    stages = list(dict.fromkeys(e.stage for e in events))
+    assert stages == ["Table 1", "Table 2", "Table 3", "Table 4", "Table 9: l_shape", "Figures"]
+    for stage in stages:
+        outer = [e for e in events if e.stage == stage and "inner" not in e.info]
+        steps = [e.step for e in outer]
+        assert steps == sorted(steps) and steps[0] == 0 and steps[-1] == outer[-1].total
+        assert all("item" in e.info for e in outer)
+        assert sum("result" in e.info for e in outer) == outer[-1].total
+    # The runs' own events come through, so a long run shows its iterations.
+    inner = [e.info["inner"] for e in events if "inner" in e.info]
+    assert {"distmesh", "smoothing"} <= {e.stage for e in inner}
+    assert any(e.info.get("result") == "skipped (quick run)" for e in events)
+    # The library never prints, with or without a callback.
     run(tmp_path / "quiet", quick=True, cases=[], runs=1, distmesh_h0_scale=4)
+    run(tmp_path / "events", quick=True, cases=[], runs=1, distmesh_h0_scale=4,
+        callback=lambda event: None)
     captured = capsys.readouterr()
     assert captured.err == "" and captured.out == ""
-    run(tmp_path / "loud", quick=True, progress=True, cases=[], runs=1, distmesh_h0_scale=4)
-    captured = capsys.readouterr()
-    assert "done" in captured.err and captured.out == ""
 
 
-def test_bad_arguments(tmp_path):
-    with pytest.raises(ValueError, match="unknown case"):
-        run(tmp_path, cases=["nope"])
-    with pytest.raises(ValueError, match="Tables 5-9"):
-        run(tmp_path, cases=["unit_disc"])
-    with pytest.raises(ValueError, match="runs"):
-        run(tmp_path, runs=0)
-    with pytest.raises(ValueError, match="scale"):
-        run(tmp_path, distmesh_h0_scale=0)
+def test_report_states_h_and_explains_every_disagreement(small_run):
+    _, _, text = small_run
+    assert "**The h of our algorithm**" in text
+    assert "Our algorithm: h = 0.03 + r / 7, r = distance to (1, 0)" in text
+    assert "Our algorithm: h = 0.04 + 0.2 r" in text
+    section = text.split("## Where the measurements disagree with the paper's printed figures")[1]
+    lines = [line for line in section.splitlines() if line.startswith("- ")]
+    assert lines, "this coarse run disagrees with the paper somewhere"
+    for line in lines:
+        head, _, reason = line.partition(". ")
+        assert "measured" in head and "paper" in head and len(reason) > 30, line
+    assert "only in part" not in text
+    assert "**holds" in text or "**does not hold**" in text
+
+
+def test_figures_1_to_3_have_one_colour_bar(small_run):
+    """A colour bar is a vertical strip of many colours at the right edge of the figure."""
+    out, _, _ = small_run
+    from matplotlib.image import imread
+
+    for name in ("fig01_initial_nodes.png", "fig02_initial_triangulation.png", "fig03_final_mesh.png"):
+        image = imread(out / name)[:, :, :3]
+        height, width = image.shape[:2]
+        distinct = [len(np.unique(image[:, x].reshape(-1, 3), axis=0))
+                    for x in range(int(0.9 * width), width)]
+        assert max(distinct) > 100, f"{name}: no colour bar at the right edge"
+        # One bar for both panels: the middle of the figure (between the panels) has none.
+        middle = [len(np.unique(image[:, x].reshape(-1, 3), axis=0))
+                  for x in range(int(0.44 * width), int(0.47 * width))]
+        assert min(middle) < 100, f"{name}: a colour bar between the panels"

@@ -143,3 +143,20 @@ def test_missing_matplotlib_message(monkeypatch):
 def test_mesh_methods_delegate(mesh):
     assert mesh.plot().get_aspect() == 1.0
     assert injmesh.plot_mesh(mesh, color=None).get_aspect() == 1.0
+
+
+def test_points_and_triangles_coloured_by_values():
+    from matplotlib.colors import Normalize
+
+    p = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], float)
+    norm = Normalize(0, 2)
+    ax = P.plot_points(p, values=[0.5, 1.0, 1.5, 2.5], norm=norm, cmap="coolwarm")
+    dots = ax.collections[0]
+    assert np.allclose(dots.get_array(), [0.5, 1.0, 1.5, 2.5]) and dots.norm is norm
+    t = np.array([[0, 1, 2], [1, 3, 2]])
+    ax = P.plot_triangulation(p, t, values=[0.25, 0.75], norm=norm)
+    assert np.allclose(ax.collections[0].get_array(), [0.25, 0.75])
+    with pytest.raises(ValueError, match="one entry per point"):
+        P.plot_points(p, values=[1.0])
+    with pytest.raises(ValueError, match="one entry per triangle"):
+        P.plot_triangulation(p, t, values=[1.0, 2.0, 3.0])

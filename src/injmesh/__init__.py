@@ -20,7 +20,8 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .errors import ConvergenceWarning, NodeBudgetError
+from .errors import ConvergenceWarning, MeshError, NodeBudgetError
+from .expression import size_expression
 from .geometry import (
     Circle,
     Difference,
@@ -46,6 +47,16 @@ except PackageNotFoundError:  # running from a source tree without installation
     __version__ = "0+unknown"
 
 
+def __getattr__(name: str) -> Any:
+    # ``injmesh.adapt`` without an explicit import, loaded on first use: it pulls in SciPy's
+    # graph and optimisation modules, which ``import injmesh`` should not pay for.
+    if name == "adapt":
+        import importlib
+
+        return importlib.import_module(".adapt", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def read(path: str | Path) -> Mesh:
     """Read a triangular mesh from any file meshio reads, or from injmesh's ``.npz``."""
     from .io import read as _read
@@ -69,6 +80,7 @@ __all__ = [
     "Implicit",
     "Intersection",
     "Mesh",
+    "MeshError",
     "MeshStats",
     "NodeBudgetError",
     "Polygon",
@@ -80,4 +92,5 @@ __all__ = [
     "generate",
     "plot_mesh",
     "read",
+    "size_expression",
 ]

@@ -43,3 +43,13 @@ ENCROACH_ROUNDS = 8
 #: A boundary curve shorter than TINY_LOOP * h (integrated) is smaller than the elements and
 #: is left out with a warning.
 TINY_LOOP = 1.5
+
+#: A polygon ring whose area is below this fraction of its extent squared has zero area.
+ZERO_AREA = 1e-12
+
+#: Set operations on boundary representations: points of different operands closer than this
+#: fraction of the diameter are the same point (intersections, touching, shared edges), and
+#: each piece of the result is classified by probing this fraction of the diameter to its
+#: left and right.
+CSG_SNAP = 1e-11
+CSG_PROBE = 1e-8

@@ -28,9 +28,12 @@ From Python, ``main`` takes the arguments and returns the exit status:
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import math
+import signal
 import sys
+import threading
 import time
 import traceback
 import warnings
@@ -46,11 +49,49 @@ from .sizing import SizeLike
 PROG = "injmesh"
 log = logging.getLogger(__name__)
 PLOT_FORMATS = (".png", ".svg", ".pdf")
-COMMANDS = ("generate", "quality", "plot", "paper")
+COMMANDS = ("generate", "quality", "plot", "paper", "batch")
 
 
 class UsageError(Exception):
     """A command line that argparse rejected (exit status 2)."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (or SIGHUP) arrived: unwind exactly as Ctrl-C does, so atomic writes clean up."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_terminated(signum: int, frame: Any) -> None:
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def _terminate_like_interrupt() -> Any:
+    """While the command runs, SIGTERM and SIGHUP raise :class:`Terminated` (a KeyboardInterrupt).
+
+    By default SIGTERM kills the process on the spot: a file being written stays behind as a
+    hidden partial temporary file and nothing is said.  Raised as an exception instead, it unwinds
+    through :func:`injmesh.io.atomic_path` (which removes the temporary file) to :func:`main`,
+    which reports it.  Signal handlers can only be set from the main thread; elsewhere (main()
+    called from a worker thread) the defaults stay.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    wanted = [signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP") else [])
+    previous = {}
+    for sig in wanted:
+        with contextlib.suppress(OSError, ValueError):
+            previous[sig] = signal.signal(sig, _raise_terminated)
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            with contextlib.suppress(OSError, ValueError, TypeError):
+                signal.signal(sig, handler)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -140,6 +181,95 @@ class ProgressBar:
         """Draw the last state and end the line."""
         if self._stage is not None:
             self._flush_pending()
+            self.stream.write("\n")
+            self.stream.flush()
+            self._stage = None
+
+
+class GroupProgress:
+    """Progress of a long command made of groups of items (``injmesh paper``), on a stream.
+
+    On a terminal each group (a table, a case, the figures) gets one bar, redrawn in place with
+    ``\\r`` while its items run (with the running item's own stage and step) and left on screen
+    when the group is done.  Elsewhere (a log file, a pipe) one plain line is written per item
+    done, so the output stays readable.
+
+    Parameters
+    ----------
+    stream : text stream
+        Where to write (stderr in the CLI).
+    bar : bool
+        Draw bars redrawn in place (a terminal) rather than one line per step.
+    width : int, optional
+        Characters of each bar (default: 24, or 12 on a terminal narrower than 120 columns).
+    interval : float
+        Minimum seconds between redraws for events inside an item.
+
+    A bar's line is cut to the terminal's width, since a line that wraps cannot be redrawn in
+    place.
+
+    Examples
+    --------
+    >>> import io
+    >>> from injmesh.progress import Progress
+    >>> out = io.StringIO()
+    >>> lines = GroupProgress(out, bar=False)
+    >>> lines(Progress("Table 1", 0, 2, {"item": "distmesh unit_disc h0=0.2"}))
+    >>> lines(Progress("Table 1", 1, 2, {"item": "distmesh unit_disc h0=0.2", "result": "N 11"}))
+    >>> out.getvalue().split("s ", 1)[1]
+    'Table 1 1/2: distmesh unit_disc h0=0.2: N 11\\n'
+    """
+
+    def __init__(
+        self, stream: IO[str], *, bar: bool, width: int | None = None, interval: float = 0.2
+    ) -> None:
+        import shutil
+
+        self.stream = stream
+        self.bar = bar
+        self.columns = max(40, shutil.get_terminal_size((150, 24)).columns - 1)
+        self.width = width if width is not None else (24 if self.columns >= 119 else 12)
+        self.interval = interval
+        self._start = time.monotonic()
+        self._stage: str | None = None
+        self._last = 0.0
+        self._length = 0
+
+    def __call__(self, event: Progress) -> None:
+        now = time.monotonic()
+        elapsed = f"{now - self._start:5.0f}s"
+        info = event.info
+        if not self.bar:
+            if "result" in info:
+                self.stream.write(f"{elapsed} {event.stage} {event.step}/{event.total}: "
+                                  f"{info.get('item', '')}: {info['result']}\n")
+                self.stream.flush()
+            return
+        inner = info.get("inner")
+        if inner is not None and event.stage == self._stage and now - self._last < self.interval:
+            return
+        if event.stage != self._stage and self._stage is not None:
+            self.stream.write("\n")
+            self._length = 0
+        self._stage, self._last = event.stage, now
+        total = max(event.total or 1, 1)
+        filled = int(round(self.width * min(event.step, total) / total))
+        detail = str(info.get("item", ""))
+        if inner is not None:
+            steps = f"{inner.step}/{inner.total}" if inner.total else f"{inner.step}"
+            detail += f" ({inner.stage} {steps})"
+        elif "result" in info and event.step >= total:
+            detail = "done"
+        line = (f"{event.stage:<32.32} [{'#' * filled}{'.' * (self.width - filled)}] "
+                f"{event.step}/{event.total} {elapsed}  {detail}")
+        line = line[: self.columns]
+        self.stream.write("\r" + line + " " * max(0, self._length - len(line)))
+        self.stream.flush()
+        self._length = len(line)
+
+    def close(self) -> None:
+        """End the last bar's line."""
+        if self.bar and self._stage is not None:
             self.stream.write("\n")
             self.stream.flush()
             self._stage = None
@@ -242,8 +372,14 @@ def build_parser() -> argparse.ArgumentParser:
                            "write tables and figures.")
     paper.add_argument("--out", default="paper-results", metavar="DIR",
                        help="output directory (default: paper-results)")
-    paper.add_argument("--quick", action="store_true", help="coarser sizes, for a fast check")
-    paper.add_argument("--progress", action="store_true", help="report progress on stderr")
+    paper.add_argument("--quick", action="store_true",
+                       help="leave out the slowest DistMesh runs (h0 = 0.003 and 0.0086) and "
+                       "repeat Tables 2-3 three times instead of six: about a minute instead "
+                       "of several")
+    paper.add_argument("--progress", action="store_true",
+                       help="draw progress bars on stderr even when it is not a terminal (by "
+                       "default: bars on a terminal, one line per run otherwise; -q: none)")
+    _add_batch_parser(sub, common)
     return parser
 
 
@@ -415,10 +551,133 @@ def _plot(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
 def _paper(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
     from .paper import run
 
-    result = run(Path(args.out), quick=args.quick, progress=args.progress)
+    progress = None
+    if not args.quiet:
+        progress = GroupProgress(err, bar=args.progress or err.isatty())
+        err.write(f"{PROG} paper: meshing the paper's six domains with both algorithms"
+                  f"{' (quick run)' if args.quick else ''} into {args.out}/\n")
+        err.flush()
+    try:
+        result = run(Path(args.out), quick=args.quick, callback=progress)
+    finally:
+        if progress is not None:
+            progress.close()
     if not args.quiet:
         out.write(f"wrote {result}\n")
+        figures = sorted(result.parent.glob("fig0[13]_*.png"))
+        if figures:
+            out.write("first look: " + ", ".join(str(f) for f in figures) + "\n")
     return 0
+
+
+def _add_batch_parser(sub: Any, common: argparse.ArgumentParser) -> None:
+    from .batch import DEFAULT_FORMAT, FAMILIES, FORMATS
+
+    batch = sub.add_parser(
+        "batch", parents=[common], help="mesh many specs on a Dask cluster",
+        description="Mesh every spec of a JSON Lines file (or a random family) into DIR, on an "
+        "embedded Dask LocalCluster or on the cluster at --scheduler; DIR/summary.csv records "
+        "each spec, and rerunning the same command skips what is done (see injmesh.batch).",
+        epilog="exit status: 0 every mesh written; 1 invalid specs or another error; 3 the batch "
+        "finished but some specs failed or timed out (see the summary); 130 interrupted by "
+        "Ctrl-C, 143 by SIGTERM (rerun to resume).",
+    )
+    batch.add_argument("specs", nargs="?", metavar="SPECS.jsonl",
+                       help="one spec a line: {\"name\": ..., \"domain\": ..., \"size\": ... | "
+                       "\"nodes\": ..., \"format\": ...}")
+    batch.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    batch.add_argument("--family", choices=list(FAMILIES), metavar="FAMILY",
+                       help=f"instead of SPECS: random shapes of this family ({', '.join(FAMILIES)}; "
+                       "see injmesh.shapes), written to DIR/specs.jsonl")
+    batch.add_argument("--count", type=_positive_int, default=100, metavar="N",
+                       help="with --family: number of shapes (default 100)")
+    batch.add_argument("--seed", type=_positive_int, default=0, metavar="S",
+                       help="with --family: seed (default 0)")
+    batch.add_argument("--size", metavar="SIZE",
+                       help="with --family: h for every shape (number or expression in x, y)")
+    batch.add_argument("--nodes", type=_positive_int, metavar="N",
+                       help="with --family: about N nodes per mesh")
+    batch.add_argument("--format", choices=sorted(FORMATS), default=None,
+                       help=f"format of specs that give none (default {DEFAULT_FORMAT})")
+    batch.add_argument("--workers", type=_positive_int, metavar="N",
+                       help="worker processes of the embedded cluster (default: one per core; "
+                       "0: no Dask, one mesh after another in this process)")
+    batch.add_argument("--scheduler", metavar="ADDRESS",
+                       help="use the running Dask cluster at this scheduler (tcp://HOST:PORT)")
+    batch.add_argument("--timeout", type=_number, metavar="S", help="seconds allowed per spec")
+    batch.add_argument("--retry-failed", action="store_true",
+                       help="mesh again the specs that failed in an earlier run")
+    batch.add_argument("--progress", action="store_true",
+                       help="draw a progress bar on stderr even when it is not a terminal")
+
+
+def _batch(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
+    from .batch import (
+        DEFAULT_FORMAT,
+        BatchInterrupted,
+        SpecError,
+        load_specs,
+        mesh_many,
+        random_specs,
+        write_specs,
+    )
+
+    if (args.specs is None) == (args.family is None):
+        raise UsageError("give either SPECS.jsonl or --family")
+    if args.family is None and (args.size is not None or args.nodes is not None):
+        raise UsageError("--size and --nodes go with --family; a specs file gives them per spec")
+    if args.workers is not None and args.scheduler is not None:
+        raise UsageError("give either --workers (a new local cluster) or --scheduler, not both")
+    if args.timeout is not None and args.timeout <= 0:
+        raise UsageError(f"--timeout must be positive, got {args.timeout:g}")
+    out_dir = Path(args.out)
+    fmt = args.format or DEFAULT_FORMAT
+    try:
+        if args.family is not None:
+            size: Any = args.size
+            try:
+                size = float(size)
+            except (TypeError, ValueError):  # None, or an expression in x and y
+                pass
+            specs = random_specs(args.family, args.count, args.seed, size=size, nodes=args.nodes,
+                                 format=fmt)
+            out_dir.mkdir(parents=True, exist_ok=True)
+            write_specs(specs, out_dir / "specs.jsonl")  # the record of what was meshed
+        else:
+            specs = load_specs(args.specs, default_format=fmt)
+    except SpecError as exc:
+        err.write("".join(f"{PROG}: error: {line.strip()}\n" for line in str(exc).splitlines()[1:]
+                          or [str(exc)]))
+        return 1
+
+    show_bar = args.progress or (err.isatty() and not args.quiet)
+    bar = ProgressBar(err) if show_bar else None
+    try:
+        summary = mesh_many(specs, out_dir, client=args.scheduler, workers=args.workers,
+                            timeout=args.timeout, retry_failed=args.retry_failed, callback=bar)
+    except BatchInterrupted as exc:
+        if bar is not None:
+            bar.close()
+        s = exc.summary
+        err.write(f"{PROG}: {exc.signal_name}: batch stopped; {len(s.rows)} of {s.total} specs "
+                  f"finished, recorded in {s.path}; rerun the same command to resume\n")
+        return 128 + int(getattr(signal, exc.signal_name, signal.SIGINT))
+    finally:
+        if bar is not None:
+            bar.close()
+    counts = summary.counts
+    bad = [r for r in summary.rows if r.status != "ok"]
+    if not args.quiet:
+        for row in bad[:20]:
+            err.write(f"{PROG}: {row.name}: {row.status}: {row.message}\n")
+        if len(bad) > 20:
+            err.write(f"{PROG}: ... and {len(bad) - 20} more; see {summary.path}\n")
+        others = ", ".join(f"{n} {s}" for s, n in counts.items() if s != "ok")
+        out.write(f"{counts.get('ok', 0)} of {summary.total} meshes in {out_dir}"
+                  f"{f' ({others})' if others else ''}; {len(summary.computed)} meshed now, "
+                  f"{len(summary.reused)} up to date; {summary.seconds:.1f} s; "
+                  f"summary {summary.path}\n")
+    return 0 if summary.ok else 3
 
 
 _COMMANDS: dict[str, Callable[[argparse.Namespace, IO[str], IO[str]], int]] = {
@@ -426,6 +685,7 @@ _COMMANDS: dict[str, Callable[[argparse.Namespace, IO[str], IO[str]], int]] = {
     "quality": _quality,
     "plot": _plot,
     "paper": _paper,
+    "batch": _batch,
 }
 
 
@@ -447,7 +707,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns
     -------
     int
-        0 on success, 1 on an error, 2 on a malformed command line, 130 when interrupted.
+        0 on success, 1 on an error, 2 on a malformed command line, 130 when interrupted
+        (Ctrl-C), 143 on SIGTERM (129 on SIGHUP); an interrupted command leaves no partial file.
     """
     out, err = sys.stdout, sys.stderr
     args_list = list(sys.argv[1:] if argv is None else argv)
@@ -465,14 +726,19 @@ def main(argv: Sequence[str] | None = None) -> int:
             handler.setFormatter(logging.Formatter("%(name)s: %(message)s"))
             logger.addHandler(handler)
             logger.setLevel(logging.DEBUG if verbose > 1 else logging.INFO)
-        return _COMMANDS[args.command](args, out, err)
+        with _terminate_like_interrupt():
+            return _COMMANDS[args.command](args, out, err)
     except SystemExit as exc:  # --help and --version
         return exc.code if isinstance(exc.code, int) else 0
     except UsageError as exc:
         err.write(f"{PROG}: error: {exc}\n")
         return 2
+    except Terminated as exc:
+        name = signal.Signals(exc.signum).name
+        err.write(f"\n{PROG}: terminated by {name}; no partial file left behind\n")
+        return 128 + exc.signum
     except KeyboardInterrupt:
-        err.write(f"\n{PROG}: interrupted; nothing written\n")
+        err.write(f"\n{PROG}: interrupted; no partial file left behind\n")
         return 130
     except (ValueError, TypeError, OSError, ImportError, RuntimeError, MemoryError) as exc:
         err.write(f"{PROG}: error: {_message(exc)}\n")

@@ -23,6 +23,11 @@ built.  The front is a set of *chains*: polylines of nodes with the unmeshed reg
 
 *Stopping condition*: a layer in which no point survives (the front is exhausted), or
 ``diameter / (sqrt(3)/2 * h_min) + 10`` layers.
+
+h is asked only at points inside the domain or on its boundary: a candidate beyond the boundary
+(an apex past the opposite wall, the midpoint of a chord across a notch) takes h at its
+projection onto the boundary.  DistMesh users write h that is meaningless, even negative,
+outside the domain.
 """
 
 from __future__ import annotations
@@ -112,15 +117,15 @@ def inject_nodes(
     front = Front(boundary.points, counts, np.ones(len(counts), dtype=bool))
     placed = [existing]
     n_placed = len(existing)
-    tree = cKDTree(existing)
+    index = _NodeIndex(existing)
     walls = _Walls(boundary)
     h_min = float(h(boundary.points).min())
     max_layers = int(domain.diameter / (HEIGHT * h_min)) + 10
 
     for layer in range(1, max_layers + 1):
-        cand = _inject(front, h)
-        cand = _respace(cand, h)
-        keep = _admissible(domain, h, cand.points, tree, walls)
+        cand = _inject(front, domain, h)
+        cand = _respace(cand, domain, h)
+        keep = _admissible(domain, h, cand.points, index, walls)
         if not keep.any():
             break
         front = _survivors(cand, keep)
@@ -128,16 +133,27 @@ def inject_nodes(
         n_placed += len(front.points)
         if n_placed > max_nodes:
             raise NodeBudgetError(f"node injection passed max_nodes={max_nodes} (layer {layer})")
-        # The tree must see every node placed so far: fronts from far away meet here later.
-        tree = cKDTree(np.concatenate(placed))
+        # The index must see every node placed so far: fronts from far away meet here later.
+        index.add(front.points)
         report(callback, "injection", layer, max_layers, nodes=n_placed, front=len(front))
         front = _drop_isolated(front)
         if len(front) == 0:
             break
+    # The layer count is not known in advance: close the progress at 100 %.
+    report(callback, "injection", max_layers, max_layers, nodes=n_placed, front=0)
     return np.concatenate(placed[1:]) if len(placed) > 1 else np.empty((0, 2))
 
 
-def _inject(front: Front, h: SizeFn) -> Front:
+def _h_inside(domain: Domain, h: SizeFn, q: FloatArray) -> FloatArray:
+    """h at ``q``, taken at the boundary projection for points outside the domain."""
+    out = domain.sdf(q) > 0
+    if out.any():
+        q = q.copy()
+        q[out] = domain.project(q[out])
+    return h(q)
+
+
+def _inject(front: Front, domain: Domain, h: SizeFn) -> Front:
     """Apexes of the front edges plus arc points at reflex vertices, as new chains."""
     p = front.points
     nxt = front.successor()
@@ -149,10 +165,10 @@ def _inject(front: Front, h: SizeFn) -> Front:
     t = t / length[:, None]
     normal = np.stack([-t[:, 1], t[:, 0]], axis=1)  # left of the edge: the unmeshed side
     mid = 0.5 * (a + b)
-    hm = h(mid)
+    hm = _h_inside(domain, h, mid)
     apex = mid + HEIGHT * hm[:, None] * normal
     # Re-evaluate h at the apex so layers thin out or thicken with h.
-    ha = 0.5 * (hm + h(apex))
+    ha = 0.5 * (hm + _h_inside(domain, h, apex))
     apex = mid + HEIGHT * ha[:, None] * normal
 
     # Reflex vertices: a node with both an incoming and an outgoing edge.
@@ -190,7 +206,7 @@ def _inject(front: Front, h: SizeFn) -> Front:
     return Front(pts, lengths, front.closed.copy())
 
 
-def _respace(front: Front, h: SizeFn) -> Front:
+def _respace(front: Front, domain: Domain, h: SizeFn) -> Front:
     """Re-lay every chain at equal h-length, ``round(S)`` segments (Step 2 of the module doc)."""
     front = _drop_empty(front)
     if len(front) == 0:
@@ -207,7 +223,7 @@ def _respace(front: Front, h: SizeFn) -> Front:
     pchain = np.concatenate([front.chain, np.flatnonzero(close)])[order]
     same = pchain[1:] == pchain[:-1]
     seg = poly[1:] - poly[:-1]
-    ds = np.where(same, np.hypot(*seg.T) / h(0.5 * (poly[1:] + poly[:-1])), 0.0)
+    ds = np.where(same, np.hypot(*seg.T) / _h_inside(domain, h, 0.5 * (poly[1:] + poly[:-1])), 0.0)
     s = np.concatenate([[0.0], np.cumsum(ds)])
     pstart = np.flatnonzero(np.r_[True, ~same])
     pend = np.r_[pstart[1:], len(poly)] - 1
@@ -260,16 +276,52 @@ class _Walls:
         return out
 
 
-def _admissible(domain: Domain, h: SizeFn, q: FloatArray, tree: cKDTree, walls: _Walls) -> BoolArray:
+class _NodeIndex:
+    """Every node placed so far, for nearest-node queries.
+
+    A k-d tree rebuilt over all nodes after every layer costs O(n) per layer, O(n^1.5) in all.
+    Here the nodes live in a few trees of geometrically growing sizes (a log-structured merge):
+    a new layer becomes a tree of its own and is merged with the smaller trees at the end, so a
+    node is rebuilt into a tree O(log n) times; a query asks each of the O(log n) trees.
+    """
+
+    def __init__(self, points: FloatArray) -> None:
+        self.parts: list[FloatArray] = []
+        self.trees: list[cKDTree] = []
+        self.add(points)
+
+    def add(self, points: FloatArray) -> None:
+        pts = points
+        while self.parts and len(self.parts[-1]) <= 2 * len(pts):
+            pts = np.concatenate([self.parts.pop(), pts])
+            self.trees.pop()
+        if len(pts):
+            self.parts.append(pts)
+            self.trees.append(cKDTree(pts))
+
+    def nearest(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Distance to the nearest node and that node, for each of ``q``."""
+        best = np.full(len(q), np.inf)
+        near = np.zeros_like(q)
+        for pts, tree in zip(self.parts, self.trees, strict=True):
+            d, i = tree.query(q, k=1)
+            closer = d < best
+            best[closer] = d[closer]
+            near[closer] = pts[i[closer]]
+        return best, near
+
+
+def _admissible(domain: Domain, h: SizeFn, q: FloatArray, index: _NodeIndex, walls: _Walls) -> BoolArray:
     """Points inside, clear of the boundary, of existing nodes and of lower-numbered new points."""
     if len(q) == 0:
         return np.zeros(0, dtype=bool)
     keep = domain.sdf(q) < 0
-    hq = h(q)
+    hq = np.ones(len(q))
+    hq[keep] = h(q[keep])
     keep &= walls.distance(q) >= CLEARANCE * hq
-    dist, nn = tree.query(q, k=1)
+    dist, nearest = index.nearest(q)
     # Symmetric in the two nodes' h, so a fine front and a coarse one judge each other alike.
-    keep &= dist >= MERGE * 0.5 * (hq + h(tree.data[nn]))
+    keep &= dist >= MERGE * 0.5 * (hq + h(nearest))
     idx = np.flatnonzero(keep)
     if len(idx) > 1:
         pairs = cKDTree(q[idx]).query_pairs(MERGE * float(hq[idx].max()), output_type="ndarray")

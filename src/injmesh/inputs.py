@@ -5,12 +5,16 @@ Domains come from
 * GeoJSON (``.geojson``, ``.json``): Polygon, MultiPolygon, Feature, FeatureCollection and
   GeometryCollection; a polygon's further rings are holes (``Polygon(shell) - Polygon(hole)``) and
   several polygons are joined with ``|``;
-* WKT (``.wkt`` files, or the text itself): ``POLYGON`` and ``MULTIPOLYGON``;
+* WKT (``.wkt`` files, or the text itself): ``POLYGON`` and ``MULTIPOLYGON``; GeoJSON or WKT
+  text is always read as text, never looked up as a file name;
 * Triangle's ``.poly`` files: vertices, segments that form closed loops, and hole points (the
   innermost loop around a hole point is a hole);
 * a Python file ``path.py:name`` defining a :class:`~injmesh.Domain` or a plain ``d(p)`` (then
   also ``name_bbox``), and optionally a size as ``name_size`` or a module-level ``size``;
 * the paper's named cases (:mod:`injmesh.cases`), which bring their own size.
+
+The parsing of GeoJSON and WKT lives in :mod:`injmesh.geometry.convert` (Python callers reach it
+through :func:`~injmesh.geometry.as_domain`); this module adds files, cases and sizes.
 
 Sizes come from :func:`parse_size`, a safe expression in ``x`` and ``y`` (never ``eval``), and
 :func:`graded_size`, growing away from the boundary.
@@ -28,20 +32,32 @@ array([0.05, 0.15])
 
 from __future__ import annotations
 
-import ast
-import json
 import math
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .expression import SizeExpression, parse_size, size_expression
 from .geometry import Domain, GeometryError, Polygon, as_domain
+from .geometry.convert import looks_like_text_geometry, read_geojson, read_wkt
 from .sizing import SizeError, SizeLike
+
+__all__ = [
+    "DomainInput",
+    "SizeExpression",
+    "graded_size",
+    "load_domain",
+    "parse_size",
+    "read_geojson",
+    "read_poly",
+    "read_python",
+    "read_wkt",
+    "size_expression",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -104,12 +120,18 @@ def load_domain(spec: str) -> DomainInput:
     if spec in CASES:
         case = get_case(spec)
         return DomainInput(case.geometry, case.size, case.name)
+    # WKT and GeoJSON text are never file names, however long (a path longer than the file
+    # system allows would otherwise fail with "File name too long").
+    if looks_like_text_geometry(spec):
+        if spec.startswith("{"):
+            return DomainInput(read_geojson(spec), None, "geojson")
+        return DomainInput(read_wkt(spec), None, "wkt")
     py = re.fullmatch(r"(.+\.py)(?::([A-Za-z_]\w*))?", spec)
     if py:
         return read_python(py.group(1), py.group(2) or "domain")
     path = Path(spec)
     ext = path.suffix.lower()
-    if path.is_file():
+    if _is_file(path):
         if ext in (".geojson", ".json"):
             return DomainInput(read_geojson(_read_text(path)), None, path.stem)
         if ext == ".wkt":
@@ -122,12 +144,26 @@ def load_domain(spec: str) -> DomainInput:
         )
     if re.match(r"\s*(multi)?polygon\b", spec, re.IGNORECASE):
         return DomainInput(read_wkt(spec), None, "wkt")
-    if path.exists():
+    if _exists(path):
         raise ValueError(f"{spec!r} is not a regular file")
     if ext or "/" in spec or "\\" in spec:
         raise FileNotFoundError(f"no such file: {spec!r}")
     case = get_case(spec)  # an unknown name raises, listing the cases
     return DomainInput(case.geometry, case.size, case.name)
+
+
+def _is_file(path: Path) -> bool:
+    try:
+        return path.is_file()
+    except OSError:  # a name too long for the file system, for example: not a file
+        return False
+
+
+def _exists(path: Path) -> bool:
+    try:
+        return path.exists()
+    except OSError:
+        return False
 
 
 def _read_text(path: Path) -> str:
@@ -142,182 +178,10 @@ def _polygon(ring: ArrayLike, where: str) -> Polygon:
         v = np.asarray(ring, dtype=float)
     except (TypeError, ValueError):
         raise ValueError(f"{where}: coordinates must be numbers") from None
-    if v.ndim != 2 or v.shape[1] < 2:
-        raise ValueError(f"{where}: a ring must be a list of [x, y] positions, got shape {v.shape}")
     try:
-        return Polygon(v[:, :2])
+        return Polygon(v)
     except GeometryError as exc:
         raise GeometryError(f"{where}: {exc}") from None
-
-
-def _with_holes(rings: Sequence[Any], where: str) -> Domain:
-    if len(rings) == 0:
-        raise ValueError(f"{where}: a polygon needs at least its outer ring")
-    shape: Domain = _polygon(rings[0], f"{where}, outer ring")
-    for k, hole in enumerate(rings[1:], start=1):
-        shape = shape - _polygon(hole, f"{where}, hole {k}")
-    return shape
-
-
-def _union(parts: list[Domain], what: str) -> Domain:
-    if not parts:
-        raise ValueError(f"{what} contains no polygon")
-    out = parts[0]
-    for part in parts[1:]:
-        out = out | part
-    return out
-
-
-def read_geojson(text: str | dict[str, Any]) -> Domain:
-    """A domain from GeoJSON: Polygon, MultiPolygon, Feature, FeatureCollection.
-
-    A polygon's first ring is its outline and further rings are holes; several polygons are
-    united.  Coordinates beyond x and y are ignored; the orientation of rings does not matter.
-
-    Parameters
-    ----------
-    text : str or dict
-        The GeoJSON text, or the parsed object.
-
-    Returns
-    -------
-    Domain
-
-    Raises
-    ------
-    ValueError
-        Invalid JSON, an unsupported geometry type, or an invalid polygon (self-intersecting
-        rings raise :class:`~injmesh.GeometryError`).
-
-    Examples
-    --------
-    >>> square = {"type": "Polygon", "coordinates": [[[0, 0], [2, 0], [2, 2], [0, 2], [0, 0]]]}
-    >>> float(read_geojson(square).sdf([[1, 1]])[0])
-    -1.0
-    """
-    if isinstance(text, str):
-        try:
-            obj = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"invalid JSON: {exc}") from None
-    else:
-        obj = text
-    return _union(_geojson_parts(obj, "GeoJSON"), "the GeoJSON")
-
-
-def _geojson_parts(obj: Any, where: str) -> list[Domain]:
-    if not isinstance(obj, dict) or "type" not in obj:
-        raise ValueError(f"{where}: expected a GeoJSON object with a 'type'")
-    kind = obj["type"]
-    if kind == "FeatureCollection":
-        out: list[Domain] = []
-        for i, feature in enumerate(obj.get("features") or []):
-            out += _geojson_parts(feature, f"{where} feature {i}")
-        return out
-    if kind == "Feature":
-        if obj.get("geometry") is None:
-            return []
-        return _geojson_parts(obj["geometry"], where)
-    if kind == "GeometryCollection":
-        out = []
-        for i, geometry in enumerate(obj.get("geometries") or []):
-            out += _geojson_parts(geometry, f"{where} geometry {i}")
-        return out
-    coords = obj.get("coordinates")
-    if kind == "Polygon":
-        return [_with_holes(_list(coords, where), f"{where} polygon")]
-    if kind == "MultiPolygon":
-        return [
-            _with_holes(_list(rings, where), f"{where} polygon {i}")
-            for i, rings in enumerate(_list(coords, where))
-        ]
-    raise ValueError(
-        f"{where}: geometry type {kind!r} is not an area; use Polygon or MultiPolygon"
-    )
-
-
-def _list(value: Any, where: str) -> list[Any]:
-    if not isinstance(value, list):
-        raise ValueError(f"{where}: 'coordinates' must be nested lists")
-    return value
-
-
-_WKT_TOKEN = re.compile(r"\s*(\(|\)|,|[^\s(),]+)")
-
-
-def read_wkt(text: str) -> Domain:
-    """A domain from Well-Known Text: ``POLYGON`` or ``MULTIPOLYGON``.
-
-    Parameters
-    ----------
-    text : str
-        For example ``"POLYGON ((0 0, 1 0, 1 1, 0 1, 0 0), (0.4 0.4, 0.6 0.4, 0.5 0.6))"``;
-        ``Z``/``M`` coordinates are accepted and ignored.
-
-    Returns
-    -------
-    Domain
-
-    Raises
-    ------
-    ValueError
-        Malformed text, another geometry type, or an invalid polygon.
-
-    Examples
-    --------
-    >>> d = read_wkt("MULTIPOLYGON (((0 0, 1 0, 1 1, 0 1)), ((2 0, 3 0, 3 1, 2 1)))")
-    >>> d.sdf([[0.5, 0.5], [1.5, 0.5], [2.5, 0.5]]).round(2)
-    array([-0.5,  0.5, -0.5])
-    """
-    tokens = _WKT_TOKEN.findall(text.strip())
-    if not tokens:
-        raise ValueError("empty WKT")
-    kind = tokens[0].upper()
-    pos = 1
-    while pos < len(tokens) and tokens[pos].upper() in ("Z", "M", "ZM"):
-        pos += 1
-    if kind not in ("POLYGON", "MULTIPOLYGON"):
-        raise ValueError(f"WKT type {tokens[0]!r} is not an area; use POLYGON or MULTIPOLYGON")
-    if pos < len(tokens) and tokens[pos].upper() == "EMPTY":
-        raise ValueError(f"WKT {kind} EMPTY has no area")
-    tree, pos = _wkt_group(tokens, pos)
-    if pos != len(tokens):
-        raise ValueError(f"unexpected {' '.join(tokens[pos:pos + 3])!r} after the WKT geometry")
-    if kind == "POLYGON":
-        return _with_holes(tree, "WKT polygon")
-    parts = [_with_holes(p, f"WKT polygon {i}") for i, p in enumerate(tree)]
-    return _union(parts, "the MULTIPOLYGON")
-
-
-def _wkt_group(tokens: list[str], pos: int) -> tuple[Any, int]:
-    """Parse ``( item, item, ... )`` where an item is a group or a run of numbers."""
-    if pos >= len(tokens) or tokens[pos] != "(":
-        found = tokens[pos] if pos < len(tokens) else "the end"
-        raise ValueError(f"malformed WKT: expected '(' but found {found!r}")
-    pos += 1
-    items: list[Any] = []
-    while True:
-        if pos < len(tokens) and tokens[pos] == "(":
-            item, pos = _wkt_group(tokens, pos)
-        else:
-            numbers = []
-            while pos < len(tokens) and tokens[pos] not in ("(", ")", ","):
-                try:
-                    numbers.append(float(tokens[pos]))
-                except ValueError:
-                    raise ValueError(f"malformed WKT: {tokens[pos]!r} is not a number") from None
-                pos += 1
-            if len(numbers) < 2:
-                raise ValueError("malformed WKT: a position needs at least two numbers")
-            item = numbers
-        items.append(item)
-        if pos >= len(tokens):
-            raise ValueError("malformed WKT: missing ')'")
-        if tokens[pos] == ")":
-            return items, pos + 1
-        if tokens[pos] != ",":
-            raise ValueError(f"malformed WKT: unexpected {tokens[pos]!r}")
-        pos += 1
 
 
 def read_poly(path: str | Path) -> Domain:
@@ -354,37 +218,53 @@ def read_poly(path: str | Path) -> Domain:
     -0.5
     """
     path = Path(path)
+    name = repr(str(path))
     rows = _poly_rows(_read_text(path), str(path))
-    it = iter(rows)
+    cursor = 0
 
-    def take(n: int, what: str) -> list[list[float]]:
-        out = [next(it, None) for _ in range(n)]
-        if any(r is None for r in out):
-            raise ValueError(f"{str(path)!r}: the file ends inside the {what} section")
-        return out  # type: ignore[return-value]
+    def take(count: float, what: str) -> list[list[float]]:
+        # Counts in headers are checked against the lines actually present before anything
+        # is allocated: a header claiming 10^12 vertices must not reserve memory for them.
+        nonlocal cursor
+        n = _count(count, what, name)
+        if n > len(rows) - cursor:
+            raise ValueError(
+                f"{name}: the {what} section announces {n if n < 10**15 else f'{n:.3g}'} lines "
+                "but the file has only "
+                f"{len(rows) - cursor} left (the file ends inside the {what} section)"
+            )
+        out = rows[cursor : cursor + n]
+        cursor += n
+        return out
 
     head = take(1, "header")[0]
-    n_vertices = int(head[0])
-    if n_vertices == 0:
+    if _count(head[0], "vertex", name) == 0:
         node = path.with_suffix(".node")
         if not node.is_file():
-            raise FileNotFoundError(f"{str(path)!r} has 0 vertices and there is no {str(node)!r}")
+            raise FileNotFoundError(f"{name} has 0 vertices and there is no {str(node)!r}")
         node_rows = _poly_rows(_read_text(node), str(node))
-        n_vertices = int(node_rows[0][0])
+        n_vertices = _count(node_rows[0][0], "vertex", repr(str(node)))
+        if n_vertices > len(node_rows) - 1:
+            raise ValueError(
+                f"{str(node)!r} announces {n_vertices} vertices but has {len(node_rows) - 1} lines"
+            )
         vertex_rows = node_rows[1 : 1 + n_vertices]
     else:
-        vertex_rows = take(n_vertices, "vertex")
-    if len(vertex_rows) != n_vertices or any(len(r) < 3 for r in vertex_rows):
-        raise ValueError(f"{str(path)!r}: expected {n_vertices} vertex lines 'index x y'")
+        vertex_rows = take(head[0], "vertex")
+    n_vertices = len(vertex_rows)
+    if any(len(r) < 3 for r in vertex_rows):
+        raise ValueError(f"{name}: expected {n_vertices} vertex lines 'index x y'")
     vertices = np.array([r[1:3] for r in vertex_rows], dtype=float)
     ids = np.array([r[0] for r in vertex_rows], dtype=np.int64)
     seg_head = take(1, "segment")[0]
-    seg_rows = take(int(seg_head[0]), "segment")
+    seg_rows = take(seg_head[0], "segment")
     if any(len(r) < 3 for r in seg_rows):
-        raise ValueError(f"{str(path)!r}: segment lines must be 'index a b'")
+        raise ValueError(f"{name}: segment lines must be 'index a b'")
     seg_ids = np.array([r[1:3] for r in seg_rows], dtype=np.int64).reshape(-1, 2)
-    hole_head = next(it, [0.0])
-    hole_rows = take(int(hole_head[0]), "hole")
+    hole_head = take(1, "hole")[0] if cursor < len(rows) else [0.0]
+    hole_rows = take(hole_head[0], "hole")
+    if any(len(r) < 3 for r in hole_rows):
+        raise ValueError(f"{name}: hole lines must be 'index x y'")
     holes = np.array([r[1:3] for r in hole_rows], dtype=float).reshape(-1, 2)
 
     # Vertices are numbered from 0 or from 1; map the file's numbers to row indices.
@@ -400,6 +280,13 @@ def read_poly(path: str | Path) -> Domain:
     loops = _closed_loops(segments, str(path))
     polygons = [_polygon(vertices[loop], f"{str(path)!r} loop {k}") for k, loop in enumerate(loops)]
     return _combine_loops(polygons, holes, str(path))
+
+
+def _count(value: float, what: str, name: str) -> int:
+    """A count from a header field: a whole number >= 0."""
+    if not (math.isfinite(value) and value >= 0 and value == int(value)):
+        raise ValueError(f"{name}: the {what} count must be a whole number >= 0, got {value!r}")
+    return int(value)
 
 
 def _poly_rows(text: str, name: str) -> list[list[float]]:
@@ -527,214 +414,6 @@ def read_python(path: str | Path, name: str = "domain") -> DomainInput:
     if isinstance(size, str):
         size = parse_size(size)
     return DomainInput(obj, size, f"{path.stem}.{name}" if name != "domain" else path.stem)
-
-
-# --- sizes ------------------------------------------------------------------------------------
-
-_FUNCTIONS: dict[str, Callable[..., Any]] = {
-    "sqrt": np.sqrt,
-    "exp": np.exp,
-    "log": np.log,
-    "sin": np.sin,
-    "cos": np.cos,
-    "tan": np.tan,
-    "tanh": np.tanh,
-    "abs": np.abs,
-    "hypot": np.hypot,
-    "atan2": np.arctan2,
-    "min": lambda *a: np.minimum.reduce(np.broadcast_arrays(*a)),
-    "max": lambda *a: np.maximum.reduce(np.broadcast_arrays(*a)),
-}
-_ARITY = {"hypot": (2, 2), "atan2": (2, 2), "min": (1, 64), "max": (1, 64)}
-_CONSTANTS = {"pi": math.pi, "e": math.e}
-_BINARY: dict[type, Callable[[Any, Any], Any]] = {
-    ast.Add: np.add,
-    ast.Sub: np.subtract,
-    ast.Mult: np.multiply,
-    ast.Div: np.divide,
-    ast.Pow: np.power,
-}
-_UNARY: dict[type, Callable[[Any], Any]] = {ast.UAdd: np.positive, ast.USub: np.negative}
-_MAX_EXPRESSION = 2000
-
-_REFUSED = {
-    ast.Attribute: "attribute access",
-    ast.Subscript: "subscripts",
-    ast.Lambda: "lambda",
-    ast.ListComp: "comprehensions",
-    ast.SetComp: "comprehensions",
-    ast.DictComp: "comprehensions",
-    ast.GeneratorExp: "comprehensions",
-    ast.Compare: "comparisons",
-    ast.BoolOp: "boolean operators",
-    ast.IfExp: "conditional expressions",
-    ast.NamedExpr: "assignment",
-    ast.Starred: "starred arguments",
-    ast.List: "lists",
-    ast.Tuple: "tuples",
-    ast.Dict: "dicts",
-    ast.Set: "sets",
-    ast.JoinedStr: "strings",
-}
-
-
-class SizeExpression:
-    """A size h(x, y) parsed from text; call it with an ``(n, 2)`` array of points.
-
-    Only numbers, ``x``, ``y``, ``pi``, ``e``, ``+ - * / **``, unary ``+``/``-``, parentheses
-    and the functions ``sqrt exp log sin cos tan tanh abs hypot atan2 min max`` are allowed
-    (``min``/``max`` are element-wise over their arguments).  The expression is checked once
-    against this whitelist and then evaluated by walking its syntax tree with NumPy: it is never
-    handed to ``eval``.  Numbers are float64, so ``9**9**9`` overflows to ``inf`` (and is then
-    rejected as a size) instead of hanging.
-
-    Parameters
-    ----------
-    text : str
-        The expression.
-
-    Raises
-    ------
-    ValueError
-        Invalid syntax, or a construct outside the whitelist; the message names it.
-
-    Examples
-    --------
-    >>> h = SizeExpression("min(0.05 + 0.2 * sqrt(x**2 + y**2), 0.2)")
-    >>> h([[0, 0], [3, 4]])
-    array([0.05, 0.2 ])
-    """
-
-    def __init__(self, text: str) -> None:
-        if len(text) > _MAX_EXPRESSION:
-            raise ValueError(f"size expression is longer than {_MAX_EXPRESSION} characters")
-        try:
-            tree = ast.parse(text.strip(), mode="eval")
-        except SyntaxError as exc:
-            raise ValueError(f"size expression {text!r} is not valid: {exc.msg}") from None
-        except (RecursionError, MemoryError):
-            raise ValueError(f"size expression {text[:40]!r}... is nested too deeply") from None
-        self.text = text
-        self._tree = tree.body
-        self.uses_xy = False
-        self._check(self._tree)
-
-    def __repr__(self) -> str:
-        return f"SizeExpression({self.text!r})"
-
-    def _check(self, node: ast.AST) -> None:
-        what = _REFUSED.get(type(node))
-        if what is not None:
-            raise ValueError(f"size expression: {what} not allowed ({ast.unparse(node)!r})")
-        if isinstance(node, ast.Constant):
-            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
-                kind = "strings" if isinstance(node.value, (str, bytes)) else repr(node.value)
-                raise ValueError(f"size expression: {kind} not allowed ({ast.unparse(node)!r})")
-        elif isinstance(node, ast.Name):
-            if node.id in ("x", "y"):
-                self.uses_xy = True
-            elif node.id not in _CONSTANTS:
-                raise ValueError(
-                    f"size expression: unknown name {node.id!r}; use x, y, pi, e and the functions "
-                    f"{', '.join(_FUNCTIONS)}"
-                )
-        elif isinstance(node, ast.BinOp):
-            if type(node.op) not in _BINARY:
-                raise ValueError(
-                    f"size expression: operator {type(node.op).__name__} not allowed "
-                    f"({ast.unparse(node)!r}); use + - * / **"
-                )
-            self._check(node.left)
-            self._check(node.right)
-        elif isinstance(node, ast.UnaryOp):
-            if type(node.op) not in _UNARY:
-                raise ValueError(f"size expression: {ast.unparse(node)!r} not allowed")
-            self._check(node.operand)
-        elif isinstance(node, ast.Call):
-            fname = node.func.id if isinstance(node.func, ast.Name) else None
-            if fname not in _FUNCTIONS:
-                called = fname or ast.unparse(node.func)
-                raise ValueError(
-                    f"size expression: function {called!r} not allowed; allowed: "
-                    f"{', '.join(_FUNCTIONS)}"
-                )
-            if node.keywords:
-                raise ValueError(f"size expression: keyword arguments not allowed in {fname}()")
-            lo, hi = _ARITY.get(fname, (1, 1))
-            if not lo <= len(node.args) <= hi:
-                want = str(lo) if lo == hi else f"{lo} or more"
-                raise ValueError(
-                    f"size expression: {fname}() takes {want} argument(s), got {len(node.args)}"
-                )
-            for arg in node.args:
-                self._check(arg)
-        else:
-            raise ValueError(
-                f"size expression: {type(node).__name__} not allowed ({ast.unparse(node)!r})"
-            )
-
-    def _eval(self, node: ast.AST, x: FloatArray, y: FloatArray) -> Any:
-        if isinstance(node, ast.Constant):
-            try:
-                return np.float64(cast(float, node.value))
-            except OverflowError:  # an int beyond float range
-                return np.float64(math.inf)
-        if isinstance(node, ast.Name):
-            return x if node.id == "x" else y if node.id == "y" else np.float64(_CONSTANTS[node.id])
-        if isinstance(node, ast.BinOp):
-            return _BINARY[type(node.op)](self._eval(node.left, x, y), self._eval(node.right, x, y))
-        if isinstance(node, ast.UnaryOp):
-            return _UNARY[type(node.op)](self._eval(node.operand, x, y))
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
-            return _FUNCTIONS[node.func.id](*(self._eval(a, x, y) for a in node.args))
-        raise ValueError(f"size expression: cannot evaluate {ast.unparse(node)!r}")  # unreachable
-
-    def __call__(self, p: ArrayLike) -> FloatArray:
-        q = np.asarray(p, dtype=float).reshape(-1, 2)
-        with np.errstate(all="ignore"):
-            h = self._eval(self._tree, q[:, 0], q[:, 1])
-        return np.broadcast_to(np.asarray(h, dtype=float), (len(q),)).copy()
-
-
-def parse_size(text: str) -> float | SizeExpression:
-    """Turn the text of ``--size`` into a number or a function of ``x`` and ``y``.
-
-    Parameters
-    ----------
-    text : str
-        A number (``0.05``) or an expression (``0.02 + 0.1 * hypot(x, y)``); see
-        :class:`SizeExpression` for what is allowed.
-
-    Returns
-    -------
-    float or SizeExpression
-        A float when the text does not mention ``x`` or ``y``.
-
-    Raises
-    ------
-    ValueError
-        Refused or invalid expression, or a constant size that is not positive and finite
-        (a :class:`~injmesh.SizeError`).
-
-    Examples
-    --------
-    >>> parse_size("1/20")
-    0.05
-    >>> parse_size("__import__('os')")  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    ValueError: size expression: function '__import__' not allowed; allowed: sqrt, exp, ...
-    """
-    text = str(text).strip()
-    if not text:
-        raise ValueError("size is empty")
-    expr = SizeExpression(text)
-    if expr.uses_xy:
-        return expr
-    value = float(expr(np.zeros((1, 2)))[0])
-    if not (math.isfinite(value) and value > 0):
-        raise SizeError(f"size must be a positive finite length, got {text} = {value:g}")
-    return value
 
 
 def graded_size(

@@ -131,9 +131,11 @@ def boundary_names(
 ) -> dict[int, str]:
     """Name each boundary component: ``"outer boundary"``, ``"hole 1"``, ...
 
-    Tag 0 is the outer boundary.  Another tag is a hole when its edges run clockwise (negative
-    enclosed area, since edges keep the domain on their left) and the outer boundary of a further
-    component when they run counter-clockwise.
+    A tag is a hole when its edges run clockwise (negative enclosed area, since edges keep the
+    domain on their left) and an outer boundary when they run counter-clockwise.  Both kinds are
+    numbered in tag order, which ``generate`` makes stable (outer boundaries by decreasing area,
+    each followed by its holes): ``"outer boundary"``, ``"outer boundary 2"``, ... and
+    ``"hole 1"``, ``"hole 2"``, ...
 
     Parameters
     ----------
@@ -163,13 +165,14 @@ def boundary_names(
     a, b = points[boundary_edges[:, 0]], points[boundary_edges[:, 1]]
     area = np.bincount(tags, weights=0.5 * (a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1]))
     names = {}
+    outers = holes = 0
     for tag in np.unique(tags).tolist():
-        if tag == 0:
-            names[tag] = "outer boundary"
-        elif area[tag] < 0:
-            names[tag] = f"hole {tag}"
+        if area[tag] < 0:
+            holes += 1
+            names[tag] = f"hole {holes}"
         else:
-            names[tag] = f"outer boundary {tag}"
+            outers += 1
+            names[tag] = "outer boundary" if outers == 1 else f"outer boundary {outers}"
     return names
 
 

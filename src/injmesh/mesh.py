@@ -22,6 +22,8 @@ from .quality import (
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
+    from .validate import Defect
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
 
@@ -44,6 +46,16 @@ class MeshStats:
         Nodes after boundary meshing (Step 1) and after node injection (Step 2).
     seconds : dict
         Wall-clock seconds per stage.
+    valid : bool
+        Whether the mesh passed every check of :func:`injmesh.validate.mesh_defects`; only a
+        mesh made with ``generate(..., strict=False)`` can be invalid.
+    defects : tuple of Defect
+        What failed those checks, and where.
+    unsettled : (x, y) or None
+        Where smoothing was still moving most when it stopped (useful when not converged).
+    cleaning : dict
+        What cleaning the geometry at the scale of h changed (``merged_vertices``, ``spikes``,
+        ...: counts), empty when nothing.
     """
 
     method: str = "injection"
@@ -53,6 +65,10 @@ class MeshStats:
     boundary_nodes: int = 0
     initial_nodes: int = 0
     seconds: dict[str, float] = field(default_factory=dict)
+    valid: bool = True
+    defects: tuple[Defect, ...] = ()
+    unsettled: tuple[float, float] | None = None
+    cleaning: dict[str, int] = field(default_factory=dict)
 
     @property
     def total_seconds(self) -> float:
@@ -74,8 +90,9 @@ class Mesh:
         Boundary edges, oriented with the domain on their left (outer boundary counter-clockwise,
         holes clockwise).
     boundary_tags : (k,) int array
-        Boundary component of each boundary edge: 0 for the outer boundary of the largest
-        component, then one number per further loop (holes, other components).
+        Boundary loop of each boundary edge, numbered in a stable order that depends on the
+        shape only: outer boundaries by decreasing area, each followed by its own holes by
+        decreasing area (0 is the outer boundary of the largest component).  Never negative.
     size : callable or None
         The size function h the mesh was made for, used by :meth:`size_report`.
     stats : MeshStats

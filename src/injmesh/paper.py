@@ -13,6 +13,11 @@ algorithms through :func:`injmesh.generate` (``method="injection"``, the paper's
 CPU seconds are ``time.process_time()`` around one :func:`~injmesh.generate` call; they are not
 comparable with the paper's (MATLAB on another machine), only between the two algorithms here.
 
+Nothing is printed: progress goes to an optional ``callback`` (one group per table or case, then
+the figures), which ``injmesh paper`` draws as bars on a terminal.  Every file is written
+atomically, so an interrupted run leaves complete files only.  Panels that are compared share
+one colour scale; titles give DistMesh's h0 and our h (:data:`H_TEXT`).
+
 Examples
 --------
 >>> from pathlib import Path
@@ -22,9 +27,9 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import json
 import math
-import sys
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -39,6 +44,7 @@ from .distmesh import GEPS_FACTOR, initial_points
 from .errors import ConvergenceWarning
 from .mesh import Mesh
 from .pipeline import generate
+from .progress import Callback, Progress, report
 from .triangulation import delaunay
 
 if TYPE_CHECKING:
@@ -58,8 +64,11 @@ PAPER_TABLE2: dict[str, list[float]] = {
 PAPER_TABLE4: dict[float, float] = {0.2: 0.61, 0.08: 0.22, 0.03: 0.0441, 0.01: 0.12, 0.003: 0.15}
 
 TABLE2_H0 = 0.01
-#: The DistMesh runs that ``quick=True`` leaves out (the slowest by far).
-SLOW_H0 = 0.003
+#: ``quick=True`` leaves out the DistMesh runs with h0 below this (the paper's h0 = 0.003 of
+#: Tables 1 and 4 and 0.0086 of Table 8: 17 000 and 3 900 nodes, most of the full run's time).
+QUICK_MIN_H0 = 0.009
+#: Repeated runs of Tables 2 and 3 in a quick run (the paper: 6).
+QUICK_RUNS = 3
 #: The seed of every single DistMesh run (Tables 1, 4-9); Table 2 uses 1..runs.
 SEED = 1
 #: Tables 5-9 and Figures 4-13, in the paper's order.
@@ -117,9 +126,9 @@ def run(
     out_dir: Path,
     *,
     quick: bool = False,
-    progress: bool = False,
+    callback: Callback | None = None,
     cases: Sequence[str] | None = None,
-    runs: int = 6,
+    runs: int | None = None,
     distmesh_h0_scale: float = 1.0,
 ) -> Path:
     """Regenerate the paper's Section 5 (Tables 1-9, Figures 1-13) into ``out_dir``.
@@ -129,14 +138,20 @@ def run(
     out_dir : Path
         Created if needed; nothing is written elsewhere.
     quick : bool
-        Leave out the slowest DistMesh runs (h0 = 0.003 in Tables 1 and 4); the report says so.
-    progress : bool
-        Draw a text progress bar on stderr, one step per meshing run.  Nothing is written to
-        stderr otherwise.
+        Leave out the slowest DistMesh runs (h0 below :data:`QUICK_MIN_H0`) and repeat Tables 2
+        and 3 :data:`QUICK_RUNS` times unless ``runs`` is given; the report says so.
+    callback : callable, optional
+        Called with a :class:`~injmesh.Progress` event before and after every meshing run and
+        figure, and with the runs' own events in between.  ``stage`` names the group (``"Table
+        1"`` ... ``"Table 4"``, ``"Table 5: square_with_hole"`` ..., ``"Figures"``), ``step`` and
+        ``total`` count its items done; ``info`` holds ``"item"`` (what is being made),
+        ``"result"`` (a summary once it is done) and ``"inner"`` (the run's own
+        :class:`~injmesh.Progress`).  Nothing is printed: the command line draws these.
     cases : sequence of str, optional
         The cases of Tables 5-9 to run (default: all five).  Tables 1-4 always run.
-    runs : int
-        Number of repeated runs in Tables 2 and 3 (the paper: 6).
+    runs : int, optional
+        Number of repeated runs in Tables 2 and 3 (default: the paper's 6, or
+        :data:`QUICK_RUNS` in a quick run).
     distmesh_h0_scale : float
         Multiply every DistMesh h0 by this (1 reproduces the paper; larger is coarser and
         faster, for tests).  The report flags a scaled run as not comparable with the paper.
@@ -157,6 +172,8 @@ def run(
             get_case(name)  # a helpful error for unknown names
             raise ValueError(f"case {name!r} is not in Tables 5-9; choose from {TABLE_CASES}")
     table_cases = [name for name in TABLE_CASES if name in chosen]  # the paper's order
+    if runs is None:
+        runs = QUICK_RUNS if quick else 6
     if int(runs) != runs or runs < 1:
         raise ValueError(f"runs must be a positive integer, got {runs!r}")
     if not (math.isfinite(distmesh_h0_scale) and distmesh_h0_scale > 0):
@@ -166,14 +183,21 @@ def run(
     started = time.perf_counter()
 
     plan = _Plan(quick=quick, runs=int(runs), scale=float(distmesh_h0_scale), cases=table_cases)
-    results = _execute(plan.jobs(), plan.skipped, progress)
+    results = _execute(plan, callback)
 
     rows = plan.rows(results)
-    (out_dir / "results.json").write_text(json.dumps(rows, indent=1) + "\n")
-    figures = _figures(out_dir, plan, results)
-    report = out_dir / "report.md"
-    report.write_text(_report(plan, results, figures, time.perf_counter() - started))
-    return report
+    _write_text(out_dir / "results.json", json.dumps(rows, indent=1) + "\n")
+    figures = _figures(out_dir, plan, results, callback)
+    path = out_dir / "report.md"
+    _write_text(path, _report(plan, results, figures, time.perf_counter() - started))
+    return path
+
+
+def _write_text(path: Path, text: str) -> None:
+    from .io import atomic_path
+
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
 
 
 # --- the plan: which runs each table needs ---------------------------------------------------
@@ -191,7 +215,8 @@ class _Plan:
         return h0 * self.scale
 
     def skipped(self, job: _Job) -> bool:
-        return self.quick and job.method == "distmesh" and job.h0 == self.dm(SLOW_H0)
+        return (self.quick and job.method == "distmesh" and job.h0 is not None
+                and job.h0 < self.dm(QUICK_MIN_H0))
 
     def table1(self) -> list[tuple[float, _Job]]:
         return [(h0, _Job("unit_disc", "distmesh", self.dm(h0), SEED)) for h0 in PAPER_TABLE1]
@@ -212,12 +237,29 @@ class _Plan:
             "injection": _Job(name, "injection"),
         }
 
+    def groups(self) -> list[tuple[str, list[_Job]]]:
+        """The runs, grouped by the table that first needs them (shared runs appear once)."""
+        wanted = [
+            ("Table 1", [j for _, j in self.table1()] + [self.table3()[0]]),
+            ("Table 2", self.table2()),
+            ("Table 3", self.table3()),
+            ("Table 4", [j for _, j in self.table4()]),
+        ]
+        wanted += [
+            (f"Table {5 + TABLE_CASES.index(name)}: {name}", list(self.case_jobs(name).values()))
+            for name in self.cases
+        ]
+        seen: set[_Job] = set()
+        out = []
+        for title, jobs in wanted:
+            new = [j for j in dict.fromkeys(jobs) if j not in seen]
+            seen.update(new)
+            if new:
+                out.append((title, new))
+        return out
+
     def jobs(self) -> list[_Job]:
-        out = [j for _, j in self.table1()] + self.table2() + self.table3()
-        out += [j for _, j in self.table4()]
-        for name in self.cases:
-            out += list(self.case_jobs(name).values())
-        return list(dict.fromkeys(out))  # shared runs (e.g. Table 1 and 4 at h0 = 0.003) once
+        return [j for _, jobs in self.groups() for j in jobs]
 
     def rows(self, results: dict[_Job, _Result]) -> list[dict[str, Any]]:
         tagged: list[tuple[int, _Job]] = [(1, j) for _, j in self.table1()]
@@ -248,26 +290,40 @@ def _row(table: int, result: _Result) -> dict[str, Any]:
     }
 
 
-def _execute(jobs: list[_Job], skipped: Any, progress: bool) -> dict[_Job, _Result]:
-    """Run every job once, with a progress bar on stderr when asked."""
+def _execute(plan: _Plan, callback: Callback | None) -> dict[_Job, _Result]:
+    """Run every job once, group by group, reporting progress to ``callback``."""
     results: dict[_Job, _Result] = {}
-    bar = _Bar(len(jobs)) if progress else None
-    for i, job in enumerate(jobs):
-        if bar is not None:
-            bar.show(i, _label(job))
-        if skipped(job):
-            results[job] = _Result(job, None, 0.0, skipped=True)
-            continue
-        results[job] = _mesh(job)
-    if bar is not None:
-        bar.show(len(jobs), "done")
-        bar.close()
+    for title, jobs in plan.groups():
+        for i, job in enumerate(jobs):
+            label = _label(job)
+            report(callback, title, i, len(jobs), item=label)
+            if plan.skipped(job):
+                results[job] = _Result(job, None, 0.0, skipped=True)
+                summary = "skipped (quick run)"
+            else:
+                inner = None
+                if callback is not None:
+                    def inner(event: Progress, _t: str = title, _i: int = i, _n: int = len(jobs),
+                              _l: str = label) -> None:
+                        callback(Progress(_t, _i, _n, {"item": _l, "inner": event}))
+                results[job] = _mesh(job, inner)
+                summary = _summary(results[job])
+            report(callback, title, i + 1, len(jobs), item=label, result=summary)
     return results
 
 
-def _mesh(job: _Job) -> _Result:
+def _summary(result: _Result) -> str:
+    if result.error is not None:
+        return f"failed: {result.error.splitlines()[0]}"
+    m = result.metrics()
+    tail = "" if m["converged"] else " (cap, not converged)"
+    return (f"N {m['N']}, {m['iterations']} iterations{tail}, q_min {m['q_min']:.3f}, "
+            f"{result.cpu_seconds:.1f} s")
+
+
+def _mesh(job: _Job, callback: Callback | None = None) -> _Result:
     case = CASES[job.case]
-    kwargs: dict[str, Any] = {"method": job.method}
+    kwargs: dict[str, Any] = {"method": job.method, "callback": callback}
     if job.method == "distmesh":
         kwargs.update(h0=job.h0, seed=job.seed)
     with warnings.catch_warnings():
@@ -287,91 +343,168 @@ def _label(job: _Job) -> str:
     return f"injection {job.case}" + (f" run {job.repeat + 1}" if job.repeat else "")
 
 
-class _Bar:
-    """A one-line text progress bar on stderr."""
-
-    width = 30
-
-    def __init__(self, total: int) -> None:
-        self.total = max(total, 1)
-        self.start = time.perf_counter()
-
-    def show(self, done: int, label: str) -> None:
-        filled = round(self.width * done / self.total)
-        elapsed = time.perf_counter() - self.start
-        bar = "#" * filled + "-" * (self.width - filled)
-        line = f"[{bar}] {done}/{self.total} {elapsed:5.0f}s {label}"
-        sys.stderr.write("\r" + line[:110].ljust(110))
-        sys.stderr.flush()
-
-    def close(self) -> None:
-        sys.stderr.write("\n")
-        sys.stderr.flush()
-
-
 # --- figures ---------------------------------------------------------------------------------
 
 
-def _figures(out_dir: Path, plan: _Plan, results: dict[_Job, _Result]) -> dict[str, str]:
-    """Write the PNG figures; return ``{"fig01": "file name", ...}`` for those written."""
-    import matplotlib.pyplot as plt
-    from matplotlib.figure import Figure
+#: Our algorithm's h on each case, as the paper states it (Section 5), in words for titles.
+H_TEXT: dict[str, str] = {
+    "unit_disc": "h = 0.04 + 0.2 r, r = distance to (1, 0)",
+    "square_with_hole": "h = 0.05 + 0.2 r, r = distance to the nearest hole corner",
+    "circle_with_hole": "h = 0.05 + 0.2 r, r = distance to the centre",
+    "square_with_four_holes": "h = 0.05 + 0.2 r, r = distance to the nearest hole centre",
+    "two_circles_and_square": "h = 0.05 + 0.2 r, r = distance to the nearest of (0, 1), (0.9, 1), "
+    "(1.5, 1)",
+    "l_shape": "h = 0.03 + r / 7, r = distance to (1, 0)",
+}
 
-    from .plot import plot_mesh, plot_mesh_with_histogram, plot_points, plot_triangulation
+
+def _q_floor(*meshes: Mesh | None) -> float:
+    """A lower colour limit for quality shared by ``meshes``: their worst q, down to 0.05."""
+    worst = [float(m.quality().min()) for m in meshes if m is not None and m.n_triangles]
+    return math.floor(20 * min(worst, default=0.5)) / 20
+
+
+def _figures(
+    out_dir: Path, plan: _Plan, results: dict[_Job, _Result], callback: Callback | None = None
+) -> dict[str, str]:
+    """Write the PNG figures; return ``{"fig01": "file name", ...}`` for those written.
+
+    Panels that are compared share one colour scale (and one colour bar) per figure, and the
+    two figures of a case (DistMesh, ours) share theirs, so colours mean the same everywhere.
+    """
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+    from scipy.spatial import cKDTree
+
+    from .plot import _few_ticks, plot_mesh, plot_points, plot_quality_histogram, plot_triangulation
+    from .quality import triangle_quality
 
     written: dict[str, str] = {}
     disc = CASES["unit_disc"]
     dm_job = plan.table2()[0]
     inj_job = plan.table3()[0]
     dm_h0 = plan.dm(TABLE2_H0)
+    total = 3 + 2 * len(plan.cases)
+    done = 0
+
+    def step(name: str) -> None:
+        report(callback, "Figures", done, total, item=name)
+
+    def saved(key: str, fig: Figure, name: str) -> None:
+        nonlocal done
+        written[key] = _save(fig, out_dir / name)
+        done += 1
+        report(callback, "Figures", done, total, item=name, result="written")
+
+    def titles(method: str, case: Case, h0: float | None, points: np.ndarray | None) -> str:
+        if method == "distmesh":
+            return f"h0 = {h0:g} (h used as a relative size)"
+        return _h_range_text(case)
 
     # Figures 1 and 2: initial nodes and their Delaunay triangulation.
+    step("fig01_initial_nodes.png")
     initial = {
         "distmesh": initial_points(disc.geometry, disc.size, dm_h0, np.random.default_rng(dm_job.seed)),
         "injection": _initial_nodes(disc),
     }
     panels = [m for m in METHODS[::-1] if m in initial]
-    for number, kind in ((1, "initial_nodes"), (2, "initial_triangulation")):
-        fig = Figure(figsize=(5.2 * len(panels), 5.2), layout="constrained")
-        axes = np.atleast_1d(fig.subplots(1, len(panels)))
-        for ax, (letter, method) in zip(axes, zip("ab", panels, strict=False), strict=False):
-            p = initial[method]
-            if kind == "initial_nodes":
-                plot_points(p, ax=ax)
-            else:
-                t = delaunay(p)
-                inside = disc.geometry.sdf(p[t].mean(axis=1)) < -GEPS_FACTOR * dm_h0
-                plot_triangulation(p, t[inside], ax=ax)
-            ax.set_title(f"({letter}) {_name(method)}: {len(p)} nodes")
-        written[f"fig{number:02d}"] = _save(fig, out_dir / f"fig{number:02d}_{kind}.png")
+    # Figure 1: each node coloured by its distance to the nearest other node over h there, so
+    # 1 means "spaced as h asks" for both algorithms on one scale.
+    spacing = {}
+    for method in panels:
+        p = initial[method]
+        dist = cKDTree(p).query(p, k=2)[0][:, 1]
+        spacing[method] = dist / disc.size(p)
+    ratio_norm = Normalize(0.0, 2.0)  # white at 1; beyond 2 drawn as 2 (the colour bar says so)
+    fig = Figure(figsize=(5.2 * len(panels) + 1.2, 5.6), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(panels)))
+    for ax, (letter, method) in zip(axes, zip("ab", panels, strict=False), strict=False):
+        p = initial[method]
+        plot_points(p, ax=ax, values=spacing[method], cmap="coolwarm", norm=ratio_norm,
+                    markersize=2.5)
+        ax.set_title(f"({letter}) {_name(method)}: {len(p)} nodes\n"
+                     f"{titles(method, disc, dm_h0, p)}", fontsize=9)
+        _few_ticks(ax)
+    fig.colorbar(ScalarMappable(ratio_norm, "coolwarm"), ax=list(axes), shrink=0.8, extend="max",
+                 label="distance to the nearest node / h (1 = as h asks)")
+    fig.suptitle("Figure 1: initial nodes in the unit disc")
+    saved("fig01", fig, "fig01_initial_nodes.png")
 
-    # Figure 3: the final meshes of the unit disc.
+    # Figure 2: the Delaunay triangles inside, coloured by quality on one scale.
+    step("fig02_initial_triangulation.png")
+    tris = {}
+    for method in panels:
+        p = initial[method]
+        t = delaunay(p)
+        inside = disc.geometry.sdf(p[t].mean(axis=1)) < -GEPS_FACTOR * dm_h0
+        tris[method] = t[inside]
+    qs = {m: triangle_quality(initial[m], tris[m]) for m in panels}
+    q_lo = math.floor(20 * min(float(q.min()) for q in qs.values() if len(q))) / 20
+    q_norm = Normalize(q_lo, 1.0)
+    fig = Figure(figsize=(5.2 * len(panels) + 1.2, 5.6), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(panels)))
+    for ax, (letter, method) in zip(axes, zip("ab", panels, strict=False), strict=False):
+        p = initial[method]
+        plot_triangulation(p, tris[method], ax=ax, values=qs[method], norm=q_norm, linewidth=0.3)
+        ax.set_title(f"({letter}) {_name(method)}: {len(tris[method])} triangles, "
+                     f"q_min {float(qs[method].min()):.3f}\n{titles(method, disc, dm_h0, p)}",
+                     fontsize=9)
+        _few_ticks(ax)
+    fig.colorbar(ScalarMappable(q_norm, "viridis"), ax=list(axes), shrink=0.8,
+                 label="element quality q (Eq. 5.1)")
+    fig.suptitle("Figure 2: Delaunay triangulation of the initial nodes, before smoothing")
+    saved("fig02", fig, "fig02_initial_triangulation.png")
+
+    # Figure 3: the final meshes of the unit disc, on one quality scale.
     meshes = {m: results[j].mesh for m, j in (("distmesh", dm_job), ("injection", inj_job))}
     drawn = [m for m in ("distmesh", "injection") if meshes[m] is not None]
     if drawn:
-        fig = Figure(figsize=(5.2 * len(drawn), 5.2), layout="constrained")
+        step("fig03_final_mesh.png")
+        q_norm = Normalize(_q_floor(*meshes.values()), 1.0)
+        fig = Figure(figsize=(5.2 * len(drawn) + 1.2, 5.6), layout="constrained")
         axes = np.atleast_1d(fig.subplots(1, len(drawn)))
         for ax, (letter, method) in zip(axes, zip("ab", drawn, strict=False), strict=False):
             mesh = meshes[method]
             if mesh is not None:
-                plot_mesh(mesh, ax=ax, colorbar=False)
-                ax.set_title(f"({letter}) {_name(method)}: {mesh.n_points} nodes")
-        written["fig03"] = _save(fig, out_dir / "fig03_final_mesh.png")
+                plot_mesh(mesh, ax=ax, colorbar=False, vmin=q_norm.vmin, vmax=q_norm.vmax)
+                q = mesh.quality()
+                ax.set_title(f"({letter}) {_name(method)}: {mesh.n_points} nodes, q_min "
+                             f"{float(q.min()):.3f}\n{titles(method, disc, dm_h0, mesh.points)}",
+                             fontsize=9)
+                _few_ticks(ax)
+        fig.colorbar(ScalarMappable(q_norm, "viridis"), ax=list(axes), shrink=0.8,
+                     label="element quality q (Eq. 5.1)")
+        fig.suptitle("Figure 3: final meshes of the unit disc")
+        saved("fig03", fig, "fig03_final_mesh.png")
 
-    # Figures 4-13: mesh and quality histogram, DistMesh then ours, per case.
+    # Figures 4-13: mesh and quality histogram, DistMesh then ours, per case; both figures of a
+    # case share one colour scale and one histogram range.
     for name in plan.cases:
+        case = CASES[name]
         base = 4 + 2 * TABLE_CASES.index(name)
+        jobs = plan.case_jobs(name)
+        pair = {m: results[jobs[m]].mesh for m in ("distmesh", "injection")}
+        lo = _q_floor(*pair.values())
         for offset, method in enumerate(("distmesh", "injection")):
-            job = plan.case_jobs(name)[method]
-            mesh = results[job].mesh
-            if mesh is None:
-                continue
-            extra = f", h0 = {job.h0:g}" if job.h0 is not None else ""
-            title = f"{CASES[name].title}: {_name(method)}{extra}"
-            pyfig = plot_mesh_with_histogram(mesh, title=title)
+            mesh = pair[method]
             key = f"fig{base + offset:02d}"
-            written[key] = _save(pyfig, out_dir / f"{key}_{name}_{method}.png")
-            plt.close(pyfig)
+            file = f"{key}_{name}_{method}.png"
+            if mesh is None:
+                done += 1
+                continue
+            step(file)
+            fig = Figure(figsize=(11, 5.2), layout="constrained")
+            left, right = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.35, 1]})
+            plot_mesh(mesh, ax=left, vmin=lo, vmax=1.0)
+            _few_ticks(left)
+            left.set_title(f"{mesh.n_points} nodes, {mesh.n_triangles} triangles")
+            bins = np.linspace(lo, 1.0, int(round(20 * (1 - lo))) + 1)
+            plot_quality_histogram(mesh, ax=right, bins=bins)
+            _few_ticks(right)
+            fig.suptitle(f"Figure {base + offset}: {case.title}, {_name(method)}\n"
+                         f"{titles(method, case, jobs[method].h0, mesh.points)}", fontsize=10)
+            saved(key, fig, file)
     return written
 
 
@@ -383,7 +516,10 @@ def _initial_nodes(case: Case) -> np.ndarray:
 
 
 def _save(fig: Figure, path: Path) -> str:
-    fig.savefig(path, dpi=110)
+    from .io import atomic_path
+
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
     return path.name
 
 
@@ -445,10 +581,16 @@ def _report(
         "CPU seconds are `time.process_time()` of one `injmesh.generate` call: comparable between "
         "the two algorithms here, not with the paper's MATLAB timings.",
         f"Single DistMesh runs use seed {SEED}; Table 2 uses seeds 1..{plan.runs}.",
+        "**The h of our algorithm** is the paper's size function of each case, in absolute "
+        "units (stated under each table; for the unit disc of Tables 1-4: "
+        f"{_h_range_text(CASES['unit_disc'])}). DistMesh gets the same function, which it uses "
+        "only as a relative size: its absolute edge length comes from h0.",
     ]
     if plan.quick:
         notes.append(
-            f"**Quick run:** the DistMesh runs with h0 = {SLOW_H0:g} (Tables 1 and 4) were skipped."
+            f"**Quick run:** the DistMesh runs with h0 below {plan.dm(QUICK_MIN_H0):g} were skipped "
+            f"(marked \"skipped (quick)\"); Tables 2 and 3 have {plan.runs} runs. Run "
+            "`injmesh paper` without `--quick` (`make demo FULL=1`) for everything."
         )
     if plan.scale != 1:
         notes.append(
@@ -458,9 +600,13 @@ def _report(
     out.append("\n".join(f"- {n}" for n in notes) + "\n")
     mismatches: list[str] = []
 
-    def note(what: str, measured: Any, paper: Any, key: str) -> None:
+    t2_spread = _spread([results[j] for j in plan.table2()])
+
+    def note(what: str, measured: Any, paper: Any, key: str, case: str = "unit_disc",
+             method: str = "distmesh", h0: float | None = None) -> None:
         if _differs(measured, paper, key):
-            mismatches.append(f"{what}: measured {_fmt(measured)}, paper {_fmt(paper)}")
+            why = _why(key, method, CASES[case], measured, paper, h0, t2_spread)
+            mismatches.append(f"{what}: measured {_fmt(measured)}, paper {_fmt(paper)}. {why}")
 
     disc = CASES["unit_disc"]
     ours = results[plan.table3()[0]]
@@ -477,9 +623,11 @@ def _report(
     ]
     for h0, j in t1:
         measured = results[j].metrics()["N"]
-        note(f"Table 1, DistMesh N at h0 = {plan.dm(h0):g}", measured, PAPER_TABLE1[h0], "N")
-    note("Table 1, our N", ours_m["N"], disc.paper_ours.N, "N")
+        note(f"Table 1, DistMesh N at h0 = {plan.dm(h0):g}", measured, PAPER_TABLE1[h0], "N",
+             h0=plan.dm(h0))
+    note("Table 1, our N", ours_m["N"], disc.paper_ours.N, "N", method="injection")
     out.append("## Table 1: nodes in the unit disc\n")
+    out.append(f"Our algorithm: {_h_range_text(disc)}. DistMesh: the h0 of each column.\n")
     out.append(_table(header, rows))
     out.append(_implied(disc))
 
@@ -493,7 +641,8 @@ def _report(
         rows.append([f"{label} (paper)", *printed])
         rows.append([f"{label} (measured)", *(_cell(results[j], key) for j in t2)])
         for i, j in enumerate(t2[: len(paper)]):
-            note(f"Table 2, run {i + 1} {label}", results[j].metrics()[key], paper[i], key)
+            note(f"Table 2, run {i + 1} {label}", results[j].metrics()[key], paper[i], key,
+                 h0=plan.dm(TABLE2_H0))
     out.append(_table(["Run", *(str(i + 1) for i in range(len(t2)))], rows))
     spread = _spread([results[j] for j in t2])
     out.append(f"Measured spread over the {len(t2)} seeds: {spread}.\n")
@@ -501,12 +650,13 @@ def _report(
     # Table 3.
     t3 = plan.table3()
     out.append("## Table 3: robustness of our algorithm (unit disc)\n")
+    out.append(f"Our algorithm: {_h_range_text(disc)}.\n")
     rows = []
     for key, label in (("N", "N"), ("iterations", "iter"), ("q_min", "q_min")):
         paper = getattr(disc.paper_ours, key)
         rows.append([f"{label} (paper)", *(_fmt(paper) for _ in t3)])
         rows.append([f"{label} (measured)", *(_cell(results[j], key) for j in t3)])
-        note(f"Table 3, {label}", ours_m[key], paper, key)
+        note(f"Table 3, {label}", ours_m[key], paper, key, method="injection")
     out.append(_table(["Run", *(str(i + 1) for i in range(len(t3)))], rows))
     identical = _identical([results[j].mesh for j in t3])
     out.append(
@@ -517,6 +667,10 @@ def _report(
     # Table 4.
     t4 = plan.table4()
     out.append("## Table 4: edge-length error Er in the unit disc\n")
+    out.append(
+        "Er is the mean of |lc - h| over the edges, lc an edge's length and h the size function "
+        f"at its midpoint. Our algorithm: {_h_range_text(disc)}.\n"
+    )
     rows = [
         ["DistMesh Er (paper)", *(_fmt(PAPER_TABLE4[h0]) for h0, _ in t4)],
         ["DistMesh Er (measured)", *(_cell(results[j], "Er") for _, j in t4)],
@@ -525,8 +679,9 @@ def _report(
     ]
     for h0, j in t4:
         measured = results[j].metrics()["Er"]
-        note(f"Table 4, DistMesh Er at h0 = {plan.dm(h0):g}", measured, PAPER_TABLE4[h0], "Er")
-    note("Table 4, our Er", ours_m["Er"], disc.paper_ours.Er, "Er")
+        note(f"Table 4, DistMesh Er at h0 = {plan.dm(h0):g}", measured, PAPER_TABLE4[h0], "Er",
+             h0=plan.dm(h0))
+    note("Table 4, our Er", ours_m["Er"], disc.paper_ours.Er, "Er", method="injection")
     out.append(_table(["", *(f"h0 = {plan.dm(h0):g}" for h0, _ in t4)], rows))
 
     # Tables 5-9.
@@ -538,6 +693,8 @@ def _report(
         pairs[name] = (dm, inj)
         number = 5 + TABLE_CASES.index(name)
         out.append(f"## Table {number}: {case.title} (DistMesh h0 = {plan.dm(case.h0):g})\n")
+        out.append(f"Our algorithm: {_h_range_text(case)}. DistMesh: the same h as a relative "
+                   f"size, h0 = {plan.dm(case.h0):g}.\n")
         rows = []
         for key, label in (("N", "N"), ("iterations", "iter"), ("q_min", "q_min"),
                            ("cpu_seconds", "CPU (s)"), ("Er", "Er")):
@@ -548,18 +705,22 @@ def _report(
             ])
             if key != "cpu_seconds":
                 note(f"Table {number}, DistMesh {label}", dm.metrics()[key],
-                     getattr(case.paper_distmesh, key), key)
+                     getattr(case.paper_distmesh, key), key, name, "distmesh", plan.dm(case.h0))
                 note(f"Table {number}, our {label}", inj.metrics()[key],
-                     getattr(case.paper_ours, key), key)
+                     getattr(case.paper_ours, key), key, name, "injection")
         header = ["", "DistMesh (paper)", "DistMesh (measured)", "Ours (paper)", "Ours (measured)"]
         out.append(_table(header, rows))
         out.append(_implied(case))
 
     # Figures.
     out.append("## Figures\n")
-    if figures:
-        listed = (f"- Figure {k[3:].lstrip('0')}: [{v}]({v})" for k, v in sorted(figures.items()))
-        out.append("\n".join(listed) + "\n")
+    expected = [1, 2, 3] + [4 + 2 * TABLE_CASES.index(c) + k for c in plan.cases for k in (0, 1)]
+    listed = []
+    for number in sorted(expected):
+        drawn = figures.get(f"fig{number:02d}")
+        listed.append(f"- Figure {number}: [{drawn}]({drawn})" if drawn else
+                      f"- Figure {number}: not drawn (its run was skipped or failed)")
+    out.append("\n".join(listed) + "\n")
 
     failed = [r for r in results.values() if r.error is not None]
     if failed:
@@ -572,7 +733,7 @@ def _report(
     out.append("## Where the measurements disagree with the paper's printed figures\n")
     out.append(
         f"Listed when N, iterations or Er differ by more than {DISAGREE:.0%}, or q_min by more "
-        f"than {Q_MIN_MARGIN}.\n"
+        f"than {Q_MIN_MARGIN}; each line ends with the reason.\n"
     )
     out.append("\n".join(f"- {m}" for m in mismatches) + "\n" if mismatches else "None.\n")
     return "\n".join(out)
@@ -606,6 +767,84 @@ def _implied(case: Case) -> str:
         f"{implied_nodes(case):.0f} nodes (interior density integrated over the domain, "
         "boundary effects ignored).\n"
     )
+
+
+def _cases(n: int) -> str:
+    return f"{n} case" if n == 1 else f"{n} cases"
+
+
+@functools.cache
+def _h_extent(name: str) -> tuple[float, float]:
+    """Smallest and largest h over the domain of case ``name`` (sampled on a grid)."""
+    case = CASES[name]
+    x0, y0, x1, y1 = case.bbox
+    xx, yy = np.meshgrid(np.linspace(x0, x1, 201), np.linspace(y0, y1, 201))
+    p = np.stack([xx.ravel(), yy.ravel()], axis=1)
+    h = case.size(p[case.geometry.sdf(p) <= 0])
+    return float(h.min()), float(h.max())
+
+
+def _h_range_text(case: Case) -> str:
+    lo, hi = _h_extent(case.name)
+    return f"{H_TEXT[case.name]}, from {lo:.3g} to {hi:.3g} over the domain"
+
+
+def _why(
+    key: str, method: str, case: Case, measured: float, paper: float, h0: float | None,
+    t2_spread: str,
+) -> str:
+    """One line on why a measured figure differs from the paper's printed one."""
+    lo, _ = _h_extent(case.name)
+    if method == "injection":
+        if key == "N":
+            implied = implied_nodes(case)
+            return (f"Our N is what h implies (an ideal mesh of this h has about {implied:.0f} "
+                    f"nodes); the paper's {_fmt(paper)} is {paper / implied:.1f} times that, so "
+                    "its meshes are finer than the h it states.")
+        if key == "iterations":
+            return ("The paper leaves its stopping condition SC undefined; ours stops when no "
+                    "node moves more than 1e-3 h in a step and then repairs the worst triangles "
+                    "(smoothing.py), so step counts are not comparable.")
+        if key == "q_min":
+            if measured > paper:
+                return ("Ours is higher: after the force smoothing we repair and polish the "
+                        "worst triangles (smoothing.py), a step the paper does not have.")
+            return ("Ours is lower: the worst triangle is shown in this case's figure; the "
+                    "paper's Step 3 is followed, with our stopping test.")
+        if measured < paper:
+            return ("Our edges follow h more closely; a larger Er fits the paper's meshes "
+                    "having more nodes (so shorter edges) than h implies.")
+        return "Our edges deviate more from h than the paper's: see this case's size error."
+    if key == "N":
+        if abs(measured - paper) <= 5:
+            return ("A few nodes at a coarse h0: which grid points survive DistMesh's random "
+                    f"rejection depends on the generator (seed {SEED} here, MATLAB's in the "
+                    "paper).")
+        if h0 is None or not measured or not paper:
+            return "DistMesh's N is set by h0 and its random start."
+        match = h0 * math.sqrt(measured / paper)
+        return (f"DistMesh's N is set by h0 (N grows as 1/h0^2); the paper's {_fmt(paper)} "
+                f"nodes fit h0 = {match:.2g} rather than the printed {h0:g}.")
+    if key == "iterations":
+        return ("DistMesh's count depends on its random start and its stopping test (every "
+                "interior move below 1e-3 h0 here, as in Persson and Strang's code); the paper "
+                f"gives neither, and its runs stopped {'later' if paper > measured else 'earlier'}.")
+    spread = t2_spread.split("q_min ")[-1]
+    if key == "q_min":
+        if case.name == "unit_disc":
+            return ("DistMesh's q_min is its single worst triangle and changes with the random "
+                    f"start: over the seeds of Table 2 it ranged {spread}.")
+        return ("DistMesh's q_min is its single worst triangle and changes with the random start "
+                f"(on the unit disc it ranged {spread} over the seeds of Table 2); the case's "
+                "DistMesh figure shows where it sits.")
+    h0_text = "this h0" if h0 is None else f"h0 = {h0:g}"
+    if measured > paper:
+        return (f"DistMesh's h is only relative: its edges scale with {h0_text}, against a "
+                f"smallest h of {lo:.3g}, so they are far from h; the paper's smaller Er fits a "
+                "coarser mesh than this h0 gives (see its N).")
+    return (f"DistMesh's h is only relative, so its Er depends on how {h0_text} compares with "
+            f"the absolute h (smallest {lo:.3g}); the paper's run came out further from h than "
+            "ours, which its text does not let us trace.")
 
 
 def _spread(results: list[_Result]) -> str:
@@ -655,6 +894,8 @@ def _verdicts(
     Beside each verdict is the same count made on the paper's own printed Tables 5-9.
     """
     done = {k: v for k, v in pairs.items() if v[0].mesh is not None and v[1].mesh is not None}
+    missing = [k for k in pairs if k not in done]
+    scope = "of Tables 5-9" + (f" measured ({', '.join(missing)} not run)" if missing else "")
     extras = {
         "iterations": _disc_iterations(results, plan),
         "Er": _disc_er(results, plan),
@@ -665,21 +906,20 @@ def _verdicts(
             lines.append(f"{claim}: not measured (no case of Tables 5-9 ran).")
             continue
         wins = [k for k, (d, i) in done.items() if better(_measured(d, key), _measured(i, key))]
-        if len(wins) == len(done):
-            word = "**holds**"
-        elif wins:
-            word = "**holds only in part**"
-        else:
-            word = "**does not hold**"
         losers = [k for k in done if k not in wins]
-        tail = f" (not in: {', '.join(losers)})" if losers else ""
+        n = len(done)
+        if not losers:
+            verdict = f"**holds** in {'all ' if n > 1 else ''}{_cases(n)} {scope}"
+        elif wins:
+            verdict = f"**holds in {len(wins)} of {_cases(n)}** {scope}, not for {', '.join(losers)}"
+        else:
+            verdict = f"**does not hold** in {'any of the ' if n > 1 else 'the '}{_cases(n)} {scope}"
         paper = [
             better(getattr(CASES[k].paper_distmesh, key), getattr(CASES[k].paper_ours, key))
             for k in done
         ]
         lines.append(
-            f"{claim}: {word} in {len(wins)} of {len(done)} cases of Tables 5-9{tail}; the "
-            f"paper's own figures for these cases: {sum(paper)} of {len(done)}."
+            f"{claim}: {verdict}. By the paper's own figures it holds in {sum(paper)} of {n}."
             + extras.get(key, "")
         )
         if key == "q_min":

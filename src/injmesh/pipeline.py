@@ -2,32 +2,41 @@
 
 from __future__ import annotations
 
+import logging
 import time
 import warnings
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .boundary import BoundaryMesh, mesh_boundary
-from .errors import ConvergenceWarning
-from .geometry import Domain, as_domain
+from .boundary import BoundaryMesh, estimate_nodes, mesh_boundary
+from .errors import ConvergenceWarning, MeshError
+from .geometry import Domain, GeometryError, as_domain
 from .geometry.base import as_points
+from .geometry.tracing import grid_spacing
 from .injection import inject_nodes
 from .mesh import Mesh, MeshStats
 from .progress import Callback
-from .sizing import SizeLike, as_size_function
-from .smoothing import Smoothing, missing_walls, smooth
+from .sizing import SizeFunction, SizeLike, as_size_function, effective_size
+from .smoothing import Smoothing, smooth
 from .triangulation import boundary_edges
+from .validate import mesh_defects
 
 FloatArray = NDArray[np.float64]
 
 DEFAULT_MAX_NODES = 5_000_000
 
+#: Geometry is cleaned at this fraction of the smallest h (see ``_clean``).
+CLEAN = 0.01
+
+logger = logging.getLogger(__name__)
+
 
 def generate(
-    domain: Domain | Callable[[FloatArray], FloatArray],
+    domain: Domain | Callable[[FloatArray], FloatArray] | object,
     size: SizeLike,
     *,
     method: Literal["injection", "distmesh"] = "injection",
@@ -38,6 +47,9 @@ def generate(
     smoothing: Smoothing = "hybrid",
     h0: float | None = None,
     seed: int | None = None,
+    feature_layers: float | None = 2.0,
+    gradation: float | None = 0.2,
+    strict: bool = True,
     callback: Callback | None = None,
 ) -> Mesh:
     """Mesh a 2-D domain with triangles whose edges follow the size function h.
@@ -49,11 +61,15 @@ def generate(
 
     Parameters
     ----------
-    domain : Domain or callable
-        A :class:`~injmesh.geometry.Domain` or a plain signed distance ``d(p) -> (n,)``
-        (negative inside) for ``p`` of shape ``(n, 2)``; a callable needs ``bbox``.
-    size : float or callable
-        Target edge length: a number, or ``h(p) -> (n,)``, positive, in domain units.
+    domain : Domain, callable or shape
+        A :class:`~injmesh.geometry.Domain`, a plain signed distance ``d(p) -> (n,)``
+        (negative inside) for ``p`` of shape ``(n, 2)`` (a callable needs ``bbox``), or a shape
+        :func:`~injmesh.geometry.as_domain` reads: a shapely geometry or anything with
+        ``__geo_interface__``, a GeoJSON dict, WKT text, an ``(n, 2)`` array of vertices.
+    size : float, callable or str
+        Target edge length: a number, ``h(p) -> (n,)``, positive, in domain units, or a safe
+        expression in ``x`` and ``y`` (``"0.02 + 0.1*x"``).  h is asked only at points inside
+        the domain or on its boundary.
     method : {"injection", "distmesh"}
         The algorithm.
     bbox : (xmin, ymin, xmax, ymax), optional
@@ -74,6 +90,24 @@ def generate(
         DistMesh only: the spacing of its initial grid (default: the smallest h on the domain).
     seed : int, optional
         DistMesh only: seed of its random rejection step.
+    feature_layers : float or None
+        Injection only.  Where the domain is thinner than ``feature_layers`` elements of size h
+        (straits, channels, a hole close to the boundary, a spike), the size becomes
+        ``feature_size / feature_layers`` (:func:`injmesh.sizing.feature_size`, the local
+        thickness), so thin parts get small well-shaped triangles rather than slivers.  None
+        turns it off.
+    gradation : float or None
+        Injection only.  The size actually followed grows by at most this much per unit length
+        (|grad h| <= gradation, :func:`injmesh.sizing.limit_gradation`): a size that jumps still
+        gives well-shaped triangles.  None turns it off.  When neither correction changes h
+        anywhere, h itself is followed; ``mesh.size`` is the size followed.
+    strict : bool
+        The mesh is checked before it is returned (:mod:`injmesh.validate`: no duplicate or
+        unused node, no flat or inverted triangle, every boundary segment a boundary edge, every
+        boundary node on the boundary, no triangle outside).  A mesh that fails raises
+        :class:`MeshError` naming each defect and where; with ``strict=False`` it is returned
+        with ``mesh.stats.valid == False`` and the list in ``mesh.stats.defects`` (and a
+        warning).
     callback : callable, optional
         Called with a :class:`~injmesh.progress.Progress` event per boundary sweep, injection
         layer and smoothing iteration.
@@ -81,6 +115,11 @@ def generate(
     Returns
     -------
     Mesh
+
+    Raises
+    ------
+    MeshError
+        The mesh failed its checks (only with ``strict=True``).
 
     Examples
     --------
@@ -104,31 +143,46 @@ def generate(
             dom, h, h0=h0, seed=seed, fixed_points=fixed, max_iterations=max_iterations,
             max_nodes=int(max_nodes), callback=callback,
         )
+        # DistMesh has no boundary segments to hold its mesh to: the structural checks only.
+        defects = tuple(mesh_defects(mesh.points, mesh.triangles, diameter=dom.diameter))
+        mesh = replace(mesh, stats=replace(mesh.stats, valid=not defects, defects=defects))
     elif method == "injection":
         if h0 is not None or seed is not None:
             raise ValueError("h0 and seed apply to method='distmesh' only")
         if smoothing not in ("hybrid", "attractive"):
             raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
-        mesh = _injection(dom, h, fixed, max_iterations, int(max_nodes), smoothing, callback)
+        dom, cleaning = _clean(dom, h)
+        target, follow = _target_size(dom, h, feature_layers, gradation)
+        mesh = _injection(dom, follow, fixed, max_iterations, int(max_nodes), smoothing, callback)
+        mesh = replace(mesh, size=target, stats=replace(mesh.stats, cleaning=cleaning))
     else:
         raise ValueError(f"method must be 'injection' or 'distmesh', got {method!r}")
     if not mesh.stats.converged:
+        where = mesh.stats.unsettled
+        at = f" (still moving most at ({where[0]:.6g}, {where[1]:.6g}))" if where else ""
         warnings.warn(
-            f"{method} smoothing did not converge in {mesh.stats.iterations} iterations; "
+            f"{method} smoothing did not converge in {mesh.stats.iterations} iterations{at}; "
             "the mesh is returned with converged=False",
             ConvergenceWarning,
             stacklevel=2,
         )
+    if not mesh.stats.valid:
+        listing = "; ".join(str(d) for d in mesh.stats.defects)
+        if strict:
+            raise MeshError(f"the mesh failed its checks: {listing}", mesh.stats.defects)
+        warnings.warn(f"the mesh is invalid (strict=False): {listing}", ConvergenceWarning, stacklevel=2)
     return mesh
 
 
 def initial_nodes(
-    domain: Domain | Callable[[FloatArray], FloatArray],
+    domain: Domain | Callable[[FloatArray], FloatArray] | object,
     size: SizeLike,
     *,
     bbox: ArrayLike | None = None,
     fixed_points: ArrayLike | None = None,
     max_nodes: int = DEFAULT_MAX_NODES,
+    feature_layers: float | None = 2.0,
+    gradation: float | None = 0.2,
 ) -> FloatArray:
     """The nodes of Steps 1 and 2 (boundary meshing and Advancing Node Injection), unsmoothed.
 
@@ -148,7 +202,8 @@ def initial_nodes(
     2
     """
     dom = as_domain(domain, bbox=bbox, fixed_points=fixed_points)
-    h = as_size_function(size)
+    dom, _ = _clean(dom, as_size_function(size))
+    _, h = _target_size(dom, as_size_function(size), feature_layers, gradation)
     fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
     bnd, seeds, injected = _place_nodes(dom, h, fixed, max_nodes, None)
     return np.concatenate([seeds, injected])
@@ -163,6 +218,7 @@ def _place_nodes(
     seconds: dict[str, float] | None = None,
 ) -> tuple[BoundaryMesh, FloatArray, FloatArray]:
     """Steps 1 and 2: boundary nodes, seeds (boundary + fixed interior) and injected nodes."""
+    h = _capped(h, domain.diameter)
     t = time.perf_counter()
     # Step 1: meshing of the boundary (Eq. 3.1-3.3, Algorithms 2 and 3).
     bnd = mesh_boundary(domain, h, fixed, max_nodes=max_nodes, callback=callback)
@@ -202,30 +258,20 @@ def _injection(
     prev[bnd.edges[:, 1]] = bnd.edges[:, 0]
     sliding = np.stack([free_b, prev[free_b], bnd.edges[free_b, 1]], axis=1)
     result = smooth(
-        domain, h, points, n_fixed=len(seeds), sliding=sliding, walls=bnd.edges, smoothing=smoothing,
-        max_iterations=max_iterations, callback=callback,
+        domain, _capped(h, domain.diameter), points, n_fixed=len(seeds), sliding=sliding,
+        walls=bnd.edges, smoothing=smoothing, max_iterations=max_iterations, callback=callback,
     )
     seconds["smoothing"] = time.perf_counter() - t
-    edges = boundary_edges(result.triangles)
-    # Boundary segments in output numbering; a segment whose node was dropped counts as lost.
-    new_index = np.full(len(points), -1)
-    old = result.kept >= 0
-    new_index[result.kept[old]] = np.flatnonzero(old)
-    walls = new_index[bnd.edges]
-    dropped = np.any(walls < 0, axis=1)
-    lost = len(missing_walls(result.triangles, walls[~dropped])) + int(dropped.sum())
-    if lost:
-        warnings.warn(
-            f"{lost} boundary segments are not edges of the mesh (a node sits too close to "
-            "them); the mesh does not follow the boundary there",
-            ConvergenceWarning,
-            stacklevel=3,
-        )
-    # Tag each boundary edge with the loop of its first node (boundary nodes come first; nodes
-    # added by repair have kept == -1 and are interior).
-    loop_of = np.full(len(points) + 1, -1)
-    loop_of[: len(bnd.node_loop)] = bnd.node_loop
-    tags = loop_of[result.kept][edges[:, 0]]
+    # The mesh's boundary edges are Step 1's segments (some split by recovery), tagged with the
+    # loop each came from; a valid mesh has exactly these as its boundary edges.
+    edges = result.walls
+    tags = bnd.node_loop[bnd.edges[result.wall_origin, 0]]
+    defects = mesh_defects(result.points, result.triangles, walls=edges, sdf=domain.sdf,
+                           diameter=domain.diameter)
+    if any(d.kind == "lost boundary segment" for d in defects):
+        # Report the mesh's actual boundary rather than segments it does not have.
+        edges = boundary_edges(result.triangles)
+        tags = _nearest_tags(result.points, edges, result.walls, tags)
 
     stats = MeshStats(
         method="injection",
@@ -235,6 +281,9 @@ def _injection(
         boundary_nodes=len(bnd.points),
         initial_nodes=len(points),
         seconds=seconds,
+        valid=not defects,
+        defects=tuple(defects),
+        unsettled=result.unsettled,
     )
     return Mesh(
         points=result.points,
@@ -244,3 +293,69 @@ def _injection(
         size=h,
         stats=stats,
     )
+
+
+def _nearest_tags(points: FloatArray, edges: NDArray[np.intp], walls: NDArray[np.intp],
+                  wall_tags: NDArray[np.intp]) -> NDArray[np.intp]:
+    """Tags for the boundary edges of an invalid mesh: those of the nearest segment."""
+    from scipy.spatial import cKDTree
+
+    ok = np.all(walls >= 0, axis=1)
+    if not ok.any():
+        return np.zeros(len(edges), dtype=np.intp)
+    mid = 0.5 * (points[walls[ok, 0]] + points[walls[ok, 1]])
+    _, k = cKDTree(mid).query(0.5 * (points[edges[:, 0]] + points[edges[:, 1]]))
+    return np.asarray(wall_tags[ok][k], dtype=np.intp)
+
+
+def _capped(h: Callable[[FloatArray], FloatArray], cap: float) -> Callable[[FloatArray], FloatArray]:
+    """h limited to ``cap`` (the domain's diameter): a larger size asks for nothing coarser than
+    the fewest nodes the boundary needs, and keeps every length the stages compute finite."""
+
+    def capped(p: FloatArray) -> FloatArray:
+        return np.minimum(h(p), cap)
+
+    return capped
+
+
+def _clean(domain: Domain, h: SizeFunction) -> tuple[Domain, dict[str, int]]:
+    """The domain cleaned at the scale of h: vertices closer than ``CLEAN * h_min`` merged,
+    zero-length edges and spikes dropped (``Domain.cleaned``), and what changed.
+
+    GIS outlines carry vertices 1e-7 apart; meshed as given they make a duplicate node and a
+    triangle of zero area.  Changes are logged and kept in ``mesh.stats.cleaning``.
+    """
+    h_min, _ = estimate_nodes(domain, h.restricted(domain))
+    cleaned, report = domain.cleaned(CLEAN * h_min)
+    changes = {k: int(v) for k, v in report.items() if v}
+    if changes:
+        logger.info("geometry cleaned at %.3g: %s", CLEAN * h_min,
+                    ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in changes.items()))
+    return cleaned, changes
+
+
+def _target_size(
+    domain: Domain, h: SizeFunction, feature_layers: float | None, gradation: float | None
+) -> tuple[SizeFunction, Callable[[FloatArray], FloatArray]]:
+    """The size the mesh is made for, and the callable the stages evaluate.
+
+    :func:`~injmesh.sizing.effective_size` lowers h where the domain is thin and limits its
+    gradation on a background grid.  When it changes nothing it returns h restricted to the
+    domain (evaluated only inside, one sdf call per evaluation); the stages then call h itself,
+    capped at the diameter, and ask it only inside (see injection and boundary), which saves
+    that sdf call at every smoothing step.
+    """
+    if feature_layers is None and gradation is None:
+        target = h.restricted(domain)
+    else:
+        try:
+            target = effective_size(h, domain, layers=feature_layers if feature_layers is not None
+                                    else np.inf, rate=gradation)
+        except GeometryError:
+            # The background grid saw no boundary: let the domain's own check say why (empty,
+            # or spilling out of its bbox), else report what the grid found.
+            domain.boundary_loops(grid_spacing(domain.bbox, np.inf))
+            raise
+    if target.domain is not None and target.function is h.function:
+        return target, _capped(h, domain.diameter)
+    return target, target

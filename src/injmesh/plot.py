@@ -66,6 +66,14 @@ def _axes(ax: Axes | None) -> Axes:
     return new
 
 
+def _few_ticks(ax: Axes, n: int = 6) -> None:
+    """At most about ``n`` ticks per axis, so labels such as -0.75 never run together."""
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=n, steps=[1, 2, 2.5, 5, 10]))
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=n, steps=[1, 2, 2.5, 5, 10]))
+
+
 def _equal(ax: Axes) -> None:
     ax.set_aspect("equal")
     ax.autoscale_view()
@@ -234,9 +242,12 @@ def plot_quality_histogram(
         edges = np.asarray(bins, dtype=float).reshape(-1)
     ax.hist(q, bins=edges.tolist(), color=color, edgecolor="white")
     ax.axvline(q_min, color="tab:red", linestyle="--", linewidth=1)
+    # The label goes on the side of the line with room for it (q_min is often close to 1).
+    right_half = q_min > 0.5 * (edges[0] + edges[-1])
     ax.annotate(
         f"$q_{{min}}$ = {q_min:.4f}", xy=(q_min, 1), xycoords=("data", "axes fraction"),
-        xytext=(4, -14), textcoords="offset points", color="tab:red",
+        xytext=(-4 if right_half else 4, -14), textcoords="offset points", color="tab:red",
+        ha="right" if right_half else "left",
     )
     ax.set_xlim(edges[0], edges[-1])
     ax.set_xlabel("element quality q")
@@ -284,6 +295,7 @@ def plot_mesh_with_histogram(
         fig = figure
     left, right = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.35, 1]})
     plot_mesh(mesh, ax=left, **kwargs)
+    _few_ticks(left)
     left.set_title(f"{mesh.n_points} nodes, {mesh.n_triangles} triangles")
     plot_quality_histogram(mesh, ax=right)
     if title:
@@ -297,6 +309,9 @@ def plot_points(
     *,
     color: str = "k",
     markersize: float = 2.0,
+    values: ArrayLike | None = None,
+    cmap: str = "viridis",
+    norm: Any = None,
 ) -> Axes:
     """Draw nodes as dots (the paper's Figure 1: initial node placement).
 
@@ -307,9 +322,16 @@ def plot_points(
     ax : matplotlib Axes, optional
         Where to draw; a new figure by default.
     color : str
-        Dot colour.
+        Dot colour (when ``values`` is not given).
     markersize : float
         Dot diameter in points.
+    values : (n,) array_like, optional
+        Colour each dot by its value through ``cmap`` and ``norm`` (a matplotlib Normalize;
+        by default the values' range).
+    cmap : str
+        Colormap for ``values``.
+    norm : matplotlib Normalize, optional
+        Colour scale for ``values``; pass the same one to several plots to share it.
 
     Returns
     -------
@@ -320,10 +342,20 @@ def plot_points(
     >>> ax = plot_points([[0, 0], [1, 0], [0, 1]])
     >>> len(ax.lines)
     1
+    >>> ax = plot_points([[0, 0], [1, 0], [0, 1]], values=[0.5, 1.0, 1.5])
+    >>> len(ax.collections)
+    1
     """
     p = np.asarray(points, dtype=float).reshape(-1, 2)
     ax = _axes(ax)
-    ax.plot(p[:, 0], p[:, 1], "o", color=color, markersize=markersize, linestyle="none")
+    if values is None:
+        ax.plot(p[:, 0], p[:, 1], "o", color=color, markersize=markersize, linestyle="none")
+    else:
+        v = np.asarray(values, dtype=float).reshape(-1)
+        if v.shape != (len(p),):
+            raise ValueError(f"values must have one entry per point ({len(p)}), got {v.shape}")
+        ax.scatter(p[:, 0], p[:, 1], c=v, s=(1.6 * markersize) ** 2, cmap=cmap, norm=norm,
+                   linewidths=0)
     _equal(ax)
     return ax
 
@@ -335,6 +367,9 @@ def plot_triangulation(
     *,
     edgecolor: str = "k",
     linewidth: float = 0.4,
+    values: ArrayLike | None = None,
+    cmap: str = "viridis",
+    norm: Any = None,
 ) -> Axes:
     """Draw the edges of a triangulation (the paper's Figure 2: initial triangulation).
 
@@ -350,6 +385,12 @@ def plot_triangulation(
         Edge colour.
     linewidth : float
         Edge width in points.
+    values : (m,) array_like, optional
+        Fill each triangle by its value (for instance its quality q) through ``cmap``.
+    cmap : str
+        Colormap for ``values``.
+    norm : matplotlib Normalize, optional
+        Colour scale for ``values``; pass the same one to several plots to share it.
 
     Returns
     -------
@@ -364,7 +405,14 @@ def plot_triangulation(
     p = np.asarray(points, dtype=float).reshape(-1, 2)
     t = np.asarray(triangles, dtype=int).reshape(-1, 3)
     ax = _axes(ax)
-    ax.triplot(p[:, 0], p[:, 1], t, color=edgecolor, linewidth=linewidth)
+    if values is None:
+        ax.triplot(p[:, 0], p[:, 1], t, color=edgecolor, linewidth=linewidth)
+    else:
+        v = np.asarray(values, dtype=float).reshape(-1)
+        if v.shape != (len(t),):
+            raise ValueError(f"values must have one entry per triangle ({len(t)}), got {v.shape}")
+        ax.tripcolor(p[:, 0], p[:, 1], t, facecolors=v, cmap=cmap, norm=norm,
+                     edgecolors=edgecolor, linewidth=linewidth)
     _equal(ax)
     return ax
 

@@ -48,8 +48,11 @@ Other choices the paper leaves open:
   its boundary edges.  On a 100 000-node square this took smoothing from 25 s to 13 s.
 * **Boundary conformity.**  Delaunay keeps a boundary segment when no node lies in its
   diametral circle.  At the end, free nodes found in the circle of a missing segment are pushed
-  just outside it and the nodes re-triangulated; a segment still missing is reported by
-  ``generate`` as a warning.
+  just outside it and the nodes re-triangulated; a segment still missing is split at its
+  projected midpoint (a new boundary node), repeatedly, until Delaunay keeps its halves.
+  Triangles are kept or dropped by flood fill from the segments' sides
+  (``triangulation.classify_by_walls``), so a triangle bridging a narrow notch is never kept.
+  ``generate`` then checks the result (:mod:`injmesh.validate`).
 * **Stopping condition.**  No node moves more than ``DPTOL * hbar`` in a step, or the cap is
   reached (then ``converged`` is False).
 """
@@ -68,7 +71,7 @@ from ._arrays import lower_wins
 from .geometry import Domain
 from .progress import Callback, report
 from .quality import triangle_quality, unique_edges
-from .triangulation import delaunay, flip_to_delaunay, inside_triangles
+from .triangulation import constrained_triangles, delaunay, flip_to_delaunay, inside_triangles
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -92,8 +95,12 @@ REPAIR_Q = 0.85
 REPAIR_ROUNDS = 6
 #: Spring steps after each repair round: the change is local and settles quickly.
 REPAIR_STEPS = 40
-#: Rounds of boundary-segment recovery at the end.
+#: Rounds of boundary-segment recovery at the end: pushing free nodes out of the segments'
+#: diametral circles, then splitting the segments still missing.
 CONFORM_ROUNDS = 5
+RECOVER_ROUNDS = 4
+#: A missing segment is split only while longer than this fraction of h.
+SPLIT_MIN = 0.25
 #: Final quality-driven pass: nodes whose star has q below OPTIMIZE_Q, at most OPTIMIZE_SWEEPS.
 OPTIMIZE_Q = 0.9
 OPTIMIZE_SWEEPS = 20
@@ -104,7 +111,9 @@ class SmoothResult:
     """Smoothed nodes and their triangulation.
 
     ``kept`` maps each of the first output nodes to its index in the input; nodes that repair
-    added come last and map to -1.
+    or boundary recovery added come last and map to -1.  ``walls`` are the boundary segments in
+    output numbering (Step 1's, some split by recovery), ``wall_origin`` the index of the
+    Step 1 segment each comes from.
     """
 
     points: FloatArray
@@ -113,6 +122,9 @@ class SmoothResult:
     iterations: int
     converged: bool
     retriangulations: int
+    walls: IntArray
+    wall_origin: IntArray
+    unsettled: tuple[float, float] | None = None
 
 
 def triangulate(domain: Domain, p: FloatArray, walls: IntArray | None = None) -> IntArray:
@@ -140,6 +152,9 @@ class _Relaxation:
         self.callback, self.cap = callback, cap
         self.iterations = 0
         self.retriangulations = 0
+        #: Where the largest move of the last step was: where a run that stops at its cap is
+        #: still moving.
+        self.unsettled: tuple[float, float] | None = None
         self.tri = triangulate(domain, p, walls)
         self._connect()
 
@@ -198,8 +213,8 @@ class _Relaxation:
             escaped = self.domain.sdf(new) > 0
             new[escaped] = p[free][escaped]
             p[free] = new
-            move = np.hypot(*(step[~escaped]).T) / hbar[free][~escaped]
-            worst = float(move.max()) if len(move) else 0.0
+            moved = np.zeros(n)
+            moved[free[~escaped]] = np.hypot(*(step[~escaped]).T) / hbar[free][~escaped]
             if len(self.slide):
                 b, bp, bn = self.slide.T
                 old = p[b]
@@ -214,12 +229,23 @@ class _Relaxation:
                 # neighbour can neither overtake it nor jump across a corner to another curve.
                 gap = np.minimum(np.hypot(*(old - p[bp]).T), np.hypot(*(old - p[bn]).T))
                 ok = np.hypot(*(cand - old).T) < 0.5 * gap
+                # The projection must keep the node on its own piece of boundary: along the
+                # chord of its neighbours, not across a slit or neck narrower than the step
+                # (there the nearest boundary point is on the opposite wall).
+                chord = p[bn] - p[bp]
+                move = cand - old
+                normal = np.abs(chord[:, 0] * move[:, 1] - chord[:, 1] * move[:, 0])
+                along = np.abs(np.einsum("ij,ij->i", chord, move))
+                ok &= normal <= 0.5 * along + 1e-9 * hbar[b] * np.hypot(*chord.T)
                 # Nor may a step close a gap below half of h: at a sharp corner the interior
                 # pushes boundary nodes into the tip, where they would crowd without end.
                 new_gap = np.minimum(np.hypot(*(cand - p[bp]).T), np.hypot(*(cand - p[bn]).T))
                 ok &= new_gap >= np.minimum(gap, 0.5 * hbar[b])
                 p[b[ok]] = cand[ok]
-                worst = max(worst, float(np.max(np.hypot(*(p[b] - old).T) / hbar[b])))
+                moved[b] = np.hypot(*(p[b] - old).T) / hbar[b]
+            at = int(np.argmax(moved))
+            worst = float(moved[at])
+            self.unsettled = (float(p[at, 0]), float(p[at, 1]))
             report(self.callback, "smoothing", self.iterations, self.cap, nodes=n, max_move=worst,
                    force=force)
             if worst < DPTOL:
@@ -286,19 +312,36 @@ def smooth(
     else:
         relax.run("attractive", ATTRACTIVE_ITERATIONS)
         converged = relax.run("spring", cap)
-    if converged and smoothing == "hybrid" and cap > 0 and len(p) > n_fixed:
+    polish = converged and smoothing == "hybrid" and cap > 0 and len(p) > n_fixed
+    if polish:
         p, tri, kept, iterations, triangulations = _repair(relax, kept)
-        p, tri, extra = _conform(domain, p, tri, n_fixed, wall)
-        triangulations += extra
-        p = _optimize(domain, p, tri, n_fixed, slide[:, 0])
     else:
         tri = relax.final()
         p, iterations, triangulations = relax.p, relax.iterations, relax.retriangulations
+    # Repair rounds share the iteration cap: a run that reached it has not converged.
+    if polish and iterations >= cap:
+        converged = False
+    p, tri, extra = _conform(domain, p, tri, n_fixed, wall)
+    triangulations += extra
+    p, tri, wall, origin, extra = _recover(domain, h, p, tri, n_fixed, wall)
+    triangulations += extra
+    kept = np.concatenate([kept, np.full(len(p) - len(kept), -1)])
+    if polish:
+        movable = np.arange(len(p)) >= n_fixed
+        movable[slide[:, 0]] = True
+        on_boundary = np.zeros(len(p), dtype=bool)
+        on_boundary[wall.ravel()] = True
+        on_boundary[slide[:, 0]] = True
+        p = _optimize(domain, p, tri, movable, on_boundary)
     # Drop nodes that no triangle uses (Qhull leaves out coincident points, for example).
     used = np.zeros(len(p), dtype=bool)
     used[tri.ravel()] = True
     remap = np.cumsum(used) - 1
-    return SmoothResult(p[used], remap[tri], kept[used], iterations, bool(converged), triangulations)
+    # A segment whose node is unused is lost; it stays in the list (pointing at -1) so that
+    # the mesh's own check reports it.
+    out_walls = np.where(used[wall], remap[wall], -1)
+    return SmoothResult(p[used], remap[tri], kept[used], iterations, bool(converged), triangulations,
+                        out_walls, origin, relax.unsettled)
 
 
 def _repair(
@@ -358,30 +401,34 @@ def missing_walls(tri: IntArray, walls: IntArray) -> IntArray:
     """The boundary segments ``walls (k, 2)`` that are not edges of ``tri``."""
     if len(walls) == 0:
         return walls
-    n = int(max(tri.max(initial=0), walls.max())) + 1
-    have = unique_edges(tri)
-    w = np.sort(walls, axis=1)
-    found = np.isin(w[:, 0].astype(np.int64) * n + w[:, 1], have[:, 0].astype(np.int64) * n + have[:, 1])
-    return walls[~found]
+    return walls[~_has_edges(tri, walls)]
 
 
 def _conform(
-    domain: Domain, p: FloatArray, tri: IntArray, n_fixed: int, walls: IntArray
+    domain: Domain,
+    p: FloatArray,
+    tri: IntArray,
+    n_fixed: int,
+    walls: IntArray,
+    rounds: int = CONFORM_ROUNDS,
+    pinned: IntArray | None = None,
 ) -> tuple[FloatArray, IntArray, int]:
     """Recover boundary segments that Delaunay dropped.
 
     A segment is missing when a node lies in its diametral circle; such free nodes are pushed
     radially to 1.05 times the circle's radius and the nodes re-triangulated (at most
-    ``CONFORM_ROUNDS`` times).
+    ``rounds`` times).  Nodes in ``pinned`` (boundary nodes added by recovery) never move.
     """
     count = 0
-    for _ in range(CONFORM_ROUNDS):
+    for _ in range(rounds):
         miss = missing_walls(tri, walls)
         if len(miss) == 0:
             break
         a, b = p[miss[:, 0]], p[miss[:, 1]]
         mid, radius = 0.5 * (a + b), 0.5 * np.hypot(*(b - a).T)
         free = np.arange(n_fixed, len(p))
+        if pinned is not None:
+            free = np.setdiff1d(free, pinned)
         if len(free) == 0:
             break
         tree = cKDTree(p[free])
@@ -397,8 +444,81 @@ def _conform(
     return p, tri, count
 
 
+def _recover(
+    domain: Domain, h: SizeFn, p: FloatArray, tri: IntArray, n_fixed: int, walls: IntArray
+) -> tuple[FloatArray, IntArray, IntArray, IntArray, int]:
+    """Make every boundary segment an edge of the mesh.
+
+    A missing segment that a node *inside* the domain encroaches (a thin part, under-resolved)
+    and that is longer than ``SPLIT_MIN * h`` gets a new boundary node at its projected
+    midpoint (Ruppert's segment splitting): its halves are shorter and Delaunay keeps them, and
+    the thin part gets smaller triangles.  Free nodes inside the halves' diametral circles are
+    pushed out and the nodes re-triangulated, at most ``RECOVER_ROUNDS`` times.  What is then
+    still missing (a segment encroached from outside, across a narrow notch; one at a sharp
+    corner, where splitting would not end) is recovered by edge flips
+    (``triangulation.constrained_triangles``), which always succeeds unless a node lies on the
+    segment.  Returns the points, triangles, segments, the Step 1 segment each comes from, and
+    the number of triangulations.
+    """
+    origin = np.arange(len(walls))
+    n0 = len(p)
+    count = 0
+    for _ in range(RECOVER_ROUNDS):
+        if len(walls) == 0:
+            break
+        lost = np.flatnonzero(~_has_edges(tri, walls))
+        k = lost[_split_worthy(h, p, walls[lost])]
+        if len(k) == 0:
+            break
+        a, b = walls[k, 0], walls[k, 1]
+        new = domain.project(0.5 * (p[a] + p[b]))
+        ids = len(p) + np.arange(len(k))
+        p = np.concatenate([p, new])
+        # Segment k becomes (a, new) followed by (new, b): the loops keep their order.
+        head = walls.copy()
+        head[k, 1] = ids
+        key = np.concatenate([np.arange(len(walls), dtype=float), k + 0.5])
+        order = np.argsort(key, kind="stable")
+        walls = np.concatenate([head, np.stack([ids, b], axis=1)])[order]
+        origin = np.concatenate([origin, origin[k]])[order]
+        p, tri, _ = _conform(domain, p, triangulate(domain, p, walls), n_fixed, walls, rounds=1,
+                             pinned=np.arange(n0, len(p)))
+        count += 2
+    if len(walls) and not _has_edges(tri, walls).all():
+        tri = constrained_triangles(p, domain.sdf, walls)
+        count += 1
+    return p, tri, walls, origin, count
+
+
+def _split_worthy(h: SizeFn, p: FloatArray, seg: IntArray) -> NDArray[np.bool_]:
+    """Segments longer than ``SPLIT_MIN * h`` with a node inside their diametral circle on the
+    domain's side (left of a -> b)."""
+    if len(seg) == 0:
+        return np.zeros(0, dtype=bool)
+    a, b = p[seg[:, 0]], p[seg[:, 1]]
+    mid, length = 0.5 * (a + b), np.hypot(*(b - a).T)
+    # h at the end nodes, which are on the boundary: h is never asked outside the domain.
+    long_ = length > SPLIT_MIN * 0.5 * (h(a) + h(b))
+    worthy = np.zeros(len(seg), dtype=bool)
+    tree = cKDTree(p)
+    for i in np.flatnonzero(long_):
+        near = np.asarray(tree.query_ball_point(mid[i], 0.5 * length[i] * (1 - 1e-9)), dtype=np.intp)
+        near = near[(near != seg[i, 0]) & (near != seg[i, 1])]
+        e, c = b[i] - a[i], p[near] - a[i]
+        worthy[i] = bool(np.any(e[0] * c[:, 1] - e[1] * c[:, 0] > 0))
+    return worthy
+
+
+def _has_edges(tri: IntArray, walls: IntArray) -> NDArray[np.bool_]:
+    """Whether each segment of ``walls (k, 2)`` is an edge of ``tri``."""
+    n = int(max(tri.max(initial=0), walls.max(initial=0))) + 1
+    have = unique_edges(tri)
+    w = np.sort(walls, axis=1)
+    return np.isin(w[:, 0].astype(np.int64) * n + w[:, 1], have[:, 0].astype(np.int64) * n + have[:, 1])
+
+
 def _optimize(
-    domain: Domain, p: FloatArray, tri: IntArray, n_fixed: int, sliding: IntArray
+    domain: Domain, p: FloatArray, tri: IntArray, movable: NDArray[np.bool_], on_boundary: NDArray[np.bool_]
 ) -> FloatArray:
     """Move free nodes of bad triangles where their star's worst quality rises.
 
@@ -419,8 +539,6 @@ def _optimize(
         q = triangle_quality(p, tri)
         star = np.full(n, np.inf)
         np.minimum.at(star, corner, np.repeat(q, 3))
-        movable = np.arange(n) >= n_fixed
-        movable[sliding] = True
         cand = (star < OPTIMIZE_Q) & movable
         if not cand.any():
             break
@@ -440,7 +558,7 @@ def _optimize(
         ra, rb = rank[edges[both, 0]], rank[edges[both, 1]]
         keep = lower_wins(cand[order], np.minimum(ra, rb), np.maximum(ra, rb))
         move = order[keep]
-        on_bnd = move < n_fixed
+        on_bnd = on_boundary[move]
         # Line search: the full step to the target, then shorter ones, until the star improves.
         done = np.zeros(len(move), dtype=bool)
         for frac in (1.0, 0.5, 0.25, 0.125):

@@ -1,9 +1,15 @@
 """Set operations on domains: ``a | b``, ``a & b``, ``a - b``.
 
-The signed distance of a combination is the usual min/max bound (exact inside for unions,
-outside for intersections).  Corners are the operands' corners that remain on the combined
-boundary plus the points where the operands' boundaries cross; projection uses the operands'
-exact projections and keeps the nearest candidate that lies on the combined boundary.
+When every operand is a boundary representation (Polygon, Rectangle, Circle, or a combination
+of them), the combination computes the exact boundary of the result once (see
+:mod:`.boolean`: shared edges, touching and tangent operands included) and its signed distance,
+projection, corners and boundary loops are those of that exact boundary.
+
+Otherwise (an :class:`~.implicit.Implicit` operand) the signed distance is the usual min/max
+bound (exact inside for unions, outside for intersections).  Corners are then the operands'
+corners that remain on the combined boundary plus the points where the operands' boundaries
+cross; projection uses the operands' exact projections and keeps the nearest candidate that
+lies on the combined boundary.
 """
 
 from __future__ import annotations
@@ -13,8 +19,10 @@ from numpy.typing import NDArray
 
 from .. import _tolerances as tol
 from .base import BBox, Domain, FloatArray, as_points
+from .brep import BRep
 
 IntArray = NDArray[np.intp]
+_UNSET = object()
 
 
 class _Combination(Domain):
@@ -24,6 +32,7 @@ class _Combination(Domain):
         self.a = a
         self.b = b
         self._corners: FloatArray | None = None
+        self._exact: object = _UNSET
 
     def __repr__(self) -> str:
         return f"({self.a!r} {self.symbol} {self.b!r})"
@@ -35,9 +44,49 @@ class _Combination(Domain):
             out.extend(child.leaves() if isinstance(child, _Combination) else [child])
         return out
 
+    def exact_brep(self) -> BRep | None:
+        """The exact boundary of the result when every operand is a B-rep (computed once),
+        else None.
+
+        Examples
+        --------
+        >>> from injmesh import Rectangle
+        >>> ell = Rectangle((-1, -1), (1, 1)) - Rectangle((0, -1), (1, 0))
+        >>> ell.exact_brep(), len(ell.corners())
+        (BRep(<1 loops, 6 segments, 0 arcs>), 6)
+        """
+        if self._exact is _UNSET:
+            from .boolean import boolean_brep
+
+            leaves = self.leaves()
+            self._exact = boolean_brep(self) if all(isinstance(leaf, BRep) for leaf in leaves) else None
+        return self._exact  # type: ignore[return-value]
+
     @property
     def exact_distance(self) -> bool:  # type: ignore[override]
-        return all(leaf.exact_distance for leaf in self.leaves())
+        """True when the operands are B-reps: d is then the exact distance to the result."""
+        return self.exact_brep() is not None
+
+    def sdf(self, p: FloatArray) -> FloatArray:
+        exact = self.exact_brep()
+        if exact is not None:
+            return exact.sdf(p)
+        return self._minmax(as_points(p))
+
+    def _minmax(self, p: FloatArray) -> FloatArray:
+        raise NotImplementedError
+
+    def gradient(self, p: FloatArray) -> FloatArray:
+        exact = self.exact_brep()
+        return exact.gradient(p) if exact is not None else super().gradient(p)
+
+    def boundary_loops(self, spacing: float) -> list[FloatArray]:
+        exact = self.exact_brep()
+        return exact.boundary_loops(spacing) if exact is not None else super().boundary_loops(spacing)
+
+    def cleaned(self, tolerance: float) -> tuple[Domain, dict[str, int]]:
+        exact = self.exact_brep()
+        return exact.cleaned(tolerance) if exact is not None else super().cleaned(tolerance)
 
     def _active(self, p: FloatArray) -> tuple[FloatArray, IntArray, FloatArray]:
         """d, the index (in :meth:`leaves`) of the leaf that attains it, and the margin: how far
@@ -67,6 +116,9 @@ class _Combination(Domain):
         2|d| everywhere keeps that leaf active over the whole move to its foot, so the foot is
         on the combined boundary without checking.
         """
+        exact = self.exact_brep()
+        if exact is not None:
+            return exact.project(p)
         p = as_points(p)
         on = tol.ON_BOUNDARY * self.diameter
         leaves = self.leaves()
@@ -77,7 +129,7 @@ class _Combination(Domain):
             if sel.any():
                 out[sel] = leaf.project(p[sel])
         check = np.ones(len(p), dtype=bool)
-        if self.exact_distance:
+        if all(leaf.exact_distance for leaf in leaves):
             check = margin <= 2.0 * np.abs(d) + on
         if check.any():
             sub = np.flatnonzero(check)
@@ -108,6 +160,9 @@ class _Combination(Domain):
         return best
 
     def corners(self) -> FloatArray:
+        exact = self.exact_brep()
+        if exact is not None:
+            return exact.corners()
         if self._corners is None:
             self._corners = self._find_corners()
         return self._corners.copy()
@@ -130,7 +185,7 @@ class Union(_Combination):
 
     symbol = "|"
 
-    def sdf(self, p: FloatArray) -> FloatArray:
+    def _minmax(self, p: FloatArray) -> FloatArray:
         return np.minimum(self.a.sdf(p), self.b.sdf(p))
 
     def _combine(self, da: FloatArray, db: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
@@ -147,7 +202,7 @@ class Intersection(_Combination):
 
     symbol = "&"
 
-    def sdf(self, p: FloatArray) -> FloatArray:
+    def _minmax(self, p: FloatArray) -> FloatArray:
         return np.maximum(self.a.sdf(p), self.b.sdf(p))
 
     def _combine(self, da: FloatArray, db: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
@@ -164,7 +219,7 @@ class Difference(_Combination):
 
     symbol = "-"
 
-    def sdf(self, p: FloatArray) -> FloatArray:
+    def _minmax(self, p: FloatArray) -> FloatArray:
         return np.maximum(self.a.sdf(p), -self.b.sdf(p))
 
     def _combine(self, da: FloatArray, db: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:

@@ -108,21 +108,26 @@ class Implicit(Domain):
 
 
 def as_domain(
-    domain: Domain | Callable[[FloatArray], FloatArray],
+    domain: Domain | Callable[[FloatArray], FloatArray] | object,
     bbox: ArrayLike | None = None,
     fixed_points: ArrayLike | None = None,
 ) -> Domain:
     """Return ``domain`` as a :class:`Domain`, wrapping a plain callable in :class:`Implicit`.
 
+    Anything else is converted by :func:`injmesh.geometry.convert.to_domain`: shapely and other
+    ``__geo_interface__`` geometries, GeoJSON dicts or text, WKT text, ``(n, 2)`` vertices.
+
     Raises
     ------
     TypeError
-        ``domain`` is neither a Domain nor callable, or is a callable given without ``bbox``.
+        ``domain`` is none of these, or is a callable given without ``bbox``.
     """
     if isinstance(domain, Domain):
         return domain
     if not callable(domain):
-        raise TypeError(f"domain must be a Domain or a callable d(p), got {type(domain).__name__}")
+        from .convert import to_domain
+
+        return to_domain(domain)
     if bbox is None:
         raise TypeError("a callable domain needs bbox=(xmin, ymin, xmax, ymax)")
     return Implicit(domain, bbox, fixed_points)

@@ -9,10 +9,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _tolerances as tol
-from .base import BBox, Domain, FloatArray, GeometryError, as_points
+from .base import BBox, FloatArray, GeometryError, as_points
+from .brep import BRep
 
 
-class Circle(Domain):
+class Circle(BRep):
     """The disc of radius ``r`` centred at ``center``.
 
     Examples
@@ -20,8 +21,6 @@ class Circle(Domain):
     >>> Circle((0, 0), 1).sdf([[0, 0], [2, 0]])
     array([-1.,  1.])
     """
-
-    exact_distance = True
 
     def __init__(self, center: Sequence[float], r: float) -> None:
         c = np.asarray(center, dtype=float).reshape(-1)
@@ -31,6 +30,10 @@ class Circle(Domain):
             raise GeometryError(f"Circle radius must be positive, got {r!r}")
         self.center = c
         self.r = float(r)
+        # Two half circles (distinct end points) as the B-rep used by set operations.
+        east, west = c + [self.r, 0.0], c - [self.r, 0.0]
+        self._set_pieces(np.stack([east, west]), np.stack([west, east]), np.stack([c, c]),
+                         np.array([math.pi, math.pi]), np.array([0, 2]), origin=c)
 
     def __repr__(self) -> str:
         return f"Circle(({self.center[0]:g}, {self.center[1]:g}), {self.r:g})"
@@ -57,135 +60,179 @@ class Circle(Domain):
         return [self.center + self.r * np.stack([np.cos(t), np.sin(t)], axis=1)]
 
 
-class Polygon(Domain):
-    """A simple polygon (no self-intersection), given by its vertices in either orientation.
+class Polygon(BRep):
+    """A polygon with holes: one outer ring (the shell) and any number of inner rings.
 
-    The signed distance is exact: the distance to the nearest edge, negative inside (even-odd
-    rule).  Vertices where the boundary turns by more than ``CORNER_ANGLE`` degrees are corners.
+    The rings may be given in either orientation; the shell is stored counter-clockwise and the
+    holes clockwise.  No two edges may cross or touch (except consecutive edges of a ring at
+    their common vertex), every hole must lie inside the shell and outside the other holes.
+    The signed distance and the projection are exact (nearest edge through a bounding-volume
+    hierarchy); vertices where the boundary turns by more than ``CORNER_ANGLE`` degrees are
+    corners.
 
     Parameters
     ----------
-    vertices : (k, 2) array_like
-        At least three vertices; a repeated closing vertex is dropped.
+    shell : (k, 2) array_like
+        At least three vertices; a closing vertex equal to the first is dropped, as are
+        repeated consecutive vertices.
+    holes : sequence of (k, 2) array_like, optional
+        The inner rings.
 
     Raises
     ------
     GeometryError
-        Fewer than three distinct vertices, non-finite coordinates, zero area, or edges that cross.
+        Fewer than three distinct vertices, non-finite coordinates, zero area, edges that cross
+        or touch (naming both edges and their coordinates), a hole outside the shell or inside
+        another hole.
 
     Examples
     --------
     >>> tri = Polygon([(0, 0), (1, 0), (0, 1)])
     >>> float(tri.sdf([[0.25, 0.25]])[0])
     -0.25
+    >>> frame = Polygon([(0, 0), (3, 0), (3, 3), (0, 3)], holes=[[(1, 1), (2, 1), (2, 2), (1, 2)]])
+    >>> frame.area
+    8.0
     """
 
-    exact_distance = True
+    def __init__(self, shell: ArrayLike, holes: Sequence[ArrayLike] | None = None) -> None:
+        read = [_read_ring(shell, "shell")]
+        read += [_read_ring(h, f"hole {k}") for k, h in enumerate(holes or [])]
+        names = ["shell"] + [f"hole {k}" for k in range(len(read) - 1)]
+        self._build([r for r, _ in read], names, depth=None, dropped=sum(n for _, n in read))
 
-    def __init__(self, vertices: ArrayLike) -> None:
-        v = np.asarray(vertices, dtype=float)
-        if v.ndim != 2 or v.shape[1] != 2:
-            raise GeometryError(f"Polygon vertices must have shape (k, 2), got {v.shape}")
-        if not np.all(np.isfinite(v)):
-            raise GeometryError("Polygon vertices must be finite")
-        if len(v) > 1 and np.allclose(v[0], v[-1]):
-            v = v[:-1]
-        # Drop repeated consecutive vertices: they make zero-length edges.
-        keep = np.any(v != np.roll(v, 1, axis=0), axis=1)
-        v = v[keep] if keep.any() else v[:1]
-        if len(v) < 3:
-            raise GeometryError(f"a Polygon needs at least 3 distinct vertices, got {len(v)}")
-        area = _shoelace(v)
-        scale = float(np.ptp(v, axis=0).max())
-        if abs(area) <= 1e-12 * scale * scale:
-            raise GeometryError("Polygon has zero area")
-        if area < 0:
-            v = v[::-1].copy()
-        _check_simple(v)
-        self.vertices = v
-        self._a = v
-        self._b = np.roll(v, -1, axis=0)
+    @classmethod
+    def from_rings(cls, rings: Sequence[ArrayLike]) -> Polygon:
+        """A set of polygons from rings in any orientation: a ring inside an odd number of
+        others is a hole, inside an even number an outer boundary (islands in lakes).
+
+        Examples
+        --------
+        >>> two = Polygon.from_rings([[(0, 0), (1, 0), (1, 1)], [(2, 0), (3, 0), (3, 1)]])
+        >>> two.area
+        1.0
+        """
+        read = [_read_ring(r, f"ring {k}") for k, r in enumerate(rings)]
+        if not read:
+            raise GeometryError("a polygon needs at least one ring")
+        obj = cls.__new__(cls)
+        obj._build([r for r, _ in read], [f"ring {k}" for k in range(len(read))], depth="nesting",
+                   dropped=sum(n for _, n in read))
+        return obj
+
+    def _build(
+        self, raw: list[FloatArray], names: list[str], depth: str | None, dropped: int, check: bool = True
+    ) -> None:
+        """Validate the rings, orient them, and store them as the pieces of a B-rep."""
+        allv = np.concatenate(raw)
+        origin = 0.5 * (allv.min(axis=0) + allv.max(axis=0))
+        local = [r - origin for r in raw]
+        for ring, name in zip(local, names, strict=True):
+            area = _shoelace(ring)
+            extent = float(np.ptp(ring, axis=0).max())
+            if not abs(area) > tol.ZERO_AREA * extent * extent:
+                raise GeometryError(f"Polygon {name} has zero area")
+        n = len(local)
+        inside = np.zeros((n, n), dtype=bool)
+        if check:  # a Rectangle is known to be simple
+            _check_rings(local, names, origin)
+            inside = _containment(local)
+        if depth is None and check:
+            for k in range(1, n):
+                if not inside[k, 0]:
+                    raise GeometryError(f"Polygon {names[k]} lies outside the shell")
+                for j in range(1, n):
+                    if j != k and inside[k, j]:
+                        raise GeometryError(f"Polygon {names[k]} lies inside {names[j]}")
+            levels = np.r_[0, np.ones(n - 1, dtype=int)]
+        else:
+            levels = inside.sum(axis=1)
+        reoriented = 0
+        for k in range(n):
+            ccw = _shoelace(local[k]) > 0
+            if ccw != (levels[k] % 2 == 0):
+                local[k] = local[k][::-1].copy()
+                reoriented += 1
+        self._rings_local = local
+        self._mode = depth
+        self._names = names
+        self._report = {"reoriented_rings": reoriented, "zero_length_edges": dropped}
+        p0 = np.concatenate(local)
+        p1 = np.concatenate([np.roll(r, -1, axis=0) for r in local])
+        loop_start = np.r_[0, np.cumsum([len(r) for r in local])]
+        self._set_local(p0, p1, np.zeros_like(p0), np.zeros(len(p0)), loop_start, origin)
 
     def __repr__(self) -> str:
-        return f"Polygon(<{len(self.vertices)} vertices>)"
+        holes = f", {len(self._rings_local) - 1} holes" if len(self._rings_local) > 1 else ""
+        return f"Polygon(<{len(self._rings_local[0])} vertices{holes}>)"
 
     @property
-    def area(self) -> float:
-        """Enclosed area."""
-        return _shoelace(self.vertices)
+    def rings(self) -> list[FloatArray]:
+        """Every ring with the domain on its left (outer rings counter-clockwise)."""
+        return [r + self._origin for r in self._rings_local]
 
     @property
-    def bbox(self) -> BBox:
-        lo = self.vertices.min(axis=0)
-        hi = self.vertices.max(axis=0)
-        return (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+    def vertices(self) -> FloatArray:
+        """The first ring (the shell), counter-clockwise."""
+        return self._rings_local[0] + self._origin
 
-    def _nearest(self, p: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Distance to the nearest edge, the nearest boundary point, and inside flags."""
-        if len(self._a) <= 64:
-            return self._nearest_by_edge(p)
-        a, b = self._a, self._b
-        ab = b - a
-        ab2 = np.einsum("ij,ij->i", ab, ab)
-        n = len(p)
-        dist = np.empty(n)
-        near = np.empty((n, 2))
-        inside = np.empty(n, dtype=bool)
-        # Chunk over points so the (points x edges) work arrays stay around 4 million entries.
-        step = max(1, 4_000_000 // len(a))
-        for s in range(0, n, step):
-            q = p[s : s + step, None, :]
-            t = np.clip(np.einsum("nmk,mk->nm", q - a, ab) / ab2, 0.0, 1.0)
-            foot = a + t[..., None] * ab
-            d2 = np.sum((q - foot) ** 2, axis=2)
-            k = np.argmin(d2, axis=1)
-            rows = np.arange(len(k))
-            dist[s : s + step] = np.sqrt(d2[rows, k])
-            near[s : s + step] = foot[rows, k]
-            # Even-odd rule: count edges crossed by a ray towards +x.
-            y = q[..., 1]
-            crosses = (a[:, 1] > y) != (b[:, 1] > y)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                xint = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
-            inside[s : s + step] = np.count_nonzero(crosses & (q[..., 0] < xint), axis=1) % 2 == 1
-        return dist, near, inside
+    @property
+    def holes(self) -> list[FloatArray]:
+        """The rings after the first, clockwise for the holes of a single polygon."""
+        return [r + self._origin for r in self._rings_local[1:]]
 
-    def _nearest_by_edge(self, p: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """:meth:`_nearest` for few edges: a loop over edges, vectorised over the points."""
-        x, y = p[:, 0], p[:, 1]
-        best = np.full(len(p), np.inf)
-        near = np.empty_like(p)
-        parity = np.zeros(len(p), dtype=bool)
-        for (ax, ay), (bx, by) in zip(self._a, self._b, strict=True):
-            ex, ey = bx - ax, by - ay
-            t = np.clip(((x - ax) * ex + (y - ay) * ey) / (ex * ex + ey * ey), 0.0, 1.0)
-            fx, fy = ax + t * ex, ay + t * ey
-            d2 = (x - fx) ** 2 + (y - fy) ** 2
-            closer = d2 < best
-            best = np.where(closer, d2, best)
-            near[closer, 0] = fx[closer]
-            near[closer, 1] = fy[closer]
-            if ay != by:
-                crosses = (ay > y) != (by > y)
-                parity ^= crosses & (x < ax + (y - ay) * ex / ey)
-        return np.sqrt(best), near, parity
+    def cleaned(self, tolerance: float) -> tuple[Polygon, dict[str, int]]:
+        """This polygon with its defects below ``tolerance`` removed, and what changed.
 
-    def sdf(self, p: FloatArray) -> FloatArray:
-        dist, _, inside = self._nearest(as_points(p))
-        return np.where(inside, -dist, dist)
+        Consecutive vertices closer than ``tolerance`` are merged (the first of a run is kept),
+        vertices where the boundary doubles back within ``tolerance`` (collinear spikes) are
+        dropped, and a hole that collapses is dropped.  The counts also include the repeated
+        vertices dropped and the rings reoriented when the polygon was built.
 
-    def project(self, p: FloatArray) -> FloatArray:
-        return self._nearest(as_points(p))[1]
+        Raises
+        ------
+        GeometryError
+            The cleaned polygon would be invalid (its edges would cross, or its shell
+            collapses): cleaning never changes the topology silently.
 
-    def corners(self) -> FloatArray:
-        v = self.vertices
-        u = v - np.roll(v, 1, axis=0)
-        w = np.roll(v, -1, axis=0) - v
-        turn = np.degrees(np.abs(np.arctan2(u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0], np.sum(u * w, 1))))
-        return v[turn > tol.CORNER_ANGLE]
-
-    def boundary_loops(self, spacing: float) -> list[FloatArray]:
-        return [self.vertices.copy()]
+        Examples
+        --------
+        >>> p = Polygon([(0, 0), (1, 0), (1.0000005, 0.0000006), (0.6, 1), (0, 1)])
+        >>> q, report = p.cleaned(1e-5)
+        >>> len(q.vertices), report["merged_vertices"]
+        (4, 1)
+        """
+        if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance >= 0):
+            raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
+        report = dict(self._report)
+        report.update(merged_vertices=0, spikes=0, dropped_rings=0)
+        rings, names = [], []
+        for k, ring in enumerate(self._rings_local):
+            out, merged, spikes = _clean_ring(ring, tolerance)
+            report["merged_vertices"] += merged
+            report["spikes"] += spikes
+            if len(out) < 3 or abs(_shoelace(out)) <= tolerance * _perimeter(out):
+                if k == 0 and self._mode is None:
+                    raise GeometryError(
+                        f"the Polygon's shell collapses when cleaned at tolerance {tolerance:g}"
+                    )
+                report["dropped_rings"] += 1
+                continue
+            rings.append(out)
+            names.append(self._names[k])
+        if report["merged_vertices"] + report["spikes"] + report["dropped_rings"] == 0:
+            return self, report
+        if not rings:
+            raise GeometryError(f"every ring of the Polygon collapses at tolerance {tolerance:g}")
+        obj = Polygon.__new__(Polygon)
+        try:
+            obj._build([r + self._origin for r in rings], names, depth=self._mode, dropped=0)
+        except GeometryError as exc:
+            raise GeometryError(
+                f"cleaning the Polygon at tolerance {tolerance:g} would make it invalid: {exc}"
+            ) from exc
+        obj._report = report
+        return obj, report
 
 
 class Rectangle(Polygon):
@@ -203,7 +250,7 @@ class Rectangle(Polygon):
         y0, y1 = sorted((y0, y1))
         if not (x1 > x0 and y1 > y0):
             raise GeometryError(f"Rectangle needs x0 < x1 and y0 < y1, got {p0!r}, {p1!r}")
-        super().__init__([(x0, y0), (x1, y0), (x1, y1), (x0, y1)])
+        self._build([np.array([(x0, y0), (x1, y0), (x1, y1), (x0, y1)])], ["shell"], None, 0, check=False)
         self.lo = np.array([x0, y0])
         self.hi = np.array([x1, y1])
 
@@ -236,40 +283,109 @@ class Rectangle(Polygon):
 
 
 def _shoelace(v: FloatArray) -> float:
+    v = v - v[0]  # relative to a vertex of its own: no cancellation far from the origin
     x, y = v[:, 0], v[:, 1]
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
 
-def _check_simple(v: FloatArray) -> None:
-    """Raise if two non-adjacent edges of the closed polyline ``v`` touch or cross."""
-    a, b = v, np.roll(v, -1, axis=0)
-    m = len(v)
-    if m > 4000:
-        return  # quadratic check: skipped for very large polygons (documented limitation)
-    i, j = np.triu_indices(m, k=2)
-    keep = ~((i == 0) & (j == m - 1))
-    i, j = i[keep], j[keep]
+def _read_ring(vertices: ArrayLike, name: str) -> tuple[FloatArray, int]:
+    """A ring as a ``(k, 2)`` array: closing vertex and repeated consecutive vertices dropped
+    (only exact repeats; near-repeats are for :meth:`Domain.cleaned`)."""
+    v = np.asarray(vertices, dtype=float)
+    if v.ndim != 2 or v.shape[1] != 2:
+        raise GeometryError(f"Polygon {name}: vertices must have shape (k, 2), got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise GeometryError(f"Polygon {name}: vertices must be finite")
+    keep = np.any(v != np.roll(v, -1, axis=0), axis=1) if len(v) > 1 else np.ones(len(v), dtype=bool)
+    if len(v) and not keep.any():
+        keep[0] = True
+    out = v[keep]
+    if len(out) < 3:
+        raise GeometryError(f"a Polygon needs at least 3 distinct vertices, got {len(out)} in its {name}")
+    closing = len(v) > 1 and bool(np.all(v[0] == v[-1]))  # the usual closed-ring notation
+    return out, len(v) - len(out) - int(closing)
 
-    def orient(p: FloatArray, q: FloatArray, r: FloatArray) -> FloatArray:
-        return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
 
-    o1 = orient(a[i], b[i], a[j])
-    o2 = orient(a[i], b[i], b[j])
-    o3 = orient(a[j], b[j], a[i])
-    o4 = orient(a[j], b[j], b[i])
-    cross = (o1 * o2 < 0) & (o3 * o4 < 0)
-    # Collinear overlaps and touching vertices also break simplicity.
-    def on_seg(p: FloatArray, q: FloatArray, r: FloatArray) -> NDArray[np.bool_]:
-        return (np.minimum(p[:, 0], q[:, 0]) <= r[:, 0]) & (r[:, 0] <= np.maximum(p[:, 0], q[:, 0])) & (
-            np.minimum(p[:, 1], q[:, 1]) <= r[:, 1]) & (r[:, 1] <= np.maximum(p[:, 1], q[:, 1]))
+def _perimeter(v: FloatArray) -> float:
+    return float(np.sum(np.hypot(*(np.roll(v, -1, axis=0) - v).T)))
 
-    touch = ((o1 == 0) & on_seg(a[i], b[i], a[j])) | ((o2 == 0) & on_seg(a[i], b[i], b[j])) | (
-        (o3 == 0) & on_seg(a[j], b[j], a[i])) | ((o4 == 0) & on_seg(a[j], b[j], b[i]))
-    bad = cross | touch
-    if bad.any():
-        k = int(np.argmax(bad))
-        raise GeometryError(
-            f"Polygon is not simple: edge {i[k]} ({tuple(a[i[k]].tolist())} to "
-            f"{tuple(b[i[k]].tolist())}) meets edge {j[k]} ({tuple(a[j[k]].tolist())} to "
-            f"{tuple(b[j[k]].tolist())})"
-        )
+
+def _clean_ring(ring: FloatArray, tolerance: float) -> tuple[FloatArray, int, int]:
+    """Merge consecutive vertices closer than ``tolerance`` and drop spikes, until neither
+    applies.  Returns the ring and the counts of merged vertices and spikes."""
+    merged = spikes = 0
+    v = ring
+    for _ in range(len(ring) + 1):
+        # Merge runs of close vertices into their first vertex.
+        keep = [0]
+        for i in range(1, len(v)):
+            if np.hypot(*(v[i] - v[keep[-1]])) >= tolerance:
+                keep.append(i)
+        while len(keep) > 1 and np.hypot(*(v[keep[-1]] - v[keep[0]])) < tolerance:
+            keep.pop()
+        merged += len(v) - len(keep)
+        v = v[keep]
+        if len(v) < 3:
+            break
+        # Spikes: the nearer neighbour lies within tolerance of the other edge, on the same side.
+        u, w = np.roll(v, 1, axis=0) - v, np.roll(v, -1, axis=0) - v
+        lu, lw = np.hypot(*u.T), np.hypot(*w.T)
+        near = np.where((lu <= lw)[:, None], u, w)
+        far = np.where((lu <= lw)[:, None], w, u)
+        lfar = np.maximum(np.maximum(lu, lw), 1e-300)
+        t = np.clip(np.einsum("ij,ij->i", near, far) / (lfar * lfar), 0.0, 1.0)
+        gap = np.hypot(*(near - t[:, None] * far).T)
+        spike = (np.einsum("ij,ij->i", u, w) > 0) & (gap < tolerance)
+        # Remove no two neighbours at once: the second may not be a spike afterwards.
+        spike &= ~np.roll(spike, 1) | (np.arange(len(v)) == 0)
+        if spike[0] and spike[-1]:
+            spike[-1] = False
+        if not spike.any():
+            break
+        spikes += int(spike.sum())
+        v = v[~spike]
+        if len(v) < 3:
+            break
+    return v, merged, spikes
+
+
+def _ring_edges(
+    local: list[FloatArray],
+) -> tuple[FloatArray, FloatArray, NDArray[np.int64], NDArray[np.int64]]:
+    a = np.ascontiguousarray(np.concatenate(local))
+    b = np.ascontiguousarray(np.concatenate([np.roll(r, -1, axis=0) for r in local]))
+    start = np.r_[0, np.cumsum([len(r) for r in local])]
+    ring = np.repeat(np.arange(len(local)), np.diff(start)).astype(np.int64)
+    idx = np.arange(len(a))
+    nxt = np.where(idx == start[ring + 1] - 1, start[ring], idx + 1).astype(np.int64)
+    return a, b, ring, nxt
+
+
+def _check_rings(local: list[FloatArray], names: list[str], origin: FloatArray) -> None:
+    """Raise if two edges of the rings cross, touch or overlap (an O(n log n) sweep)."""
+    from ..kernels.brep import first_crossing
+
+    a, b, ring, nxt = _ring_edges(local)
+    i, j = first_crossing(a, b, nxt)
+    if i < 0:
+        return
+    start = np.r_[0, np.cumsum([len(r) for r in local])]
+
+    def edge(k: int) -> str:
+        p, q = a[k] + origin, b[k] + origin
+        return (f"edge {k - start[ring[k]]} of the {names[ring[k]]} ({p[0]:.17g}, {p[1]:.17g}) to "
+                f"({q[0]:.17g}, {q[1]:.17g})")
+
+    i, j = sorted((int(i), int(j)))
+    raise GeometryError(f"Polygon is not simple: {edge(i)} meets {edge(j)}")
+
+
+def _containment(local: list[FloatArray]) -> NDArray[np.bool_]:
+    """``inside[i, j]``: ring i lies inside ring j (rings known not to meet)."""
+    from ..kernels.brep import containment
+
+    a, b, ring, _ = _ring_edges(local)
+    first = np.ascontiguousarray(np.stack([r[0] for r in local]))
+    inside = containment(first, a, b, ring, len(local))
+    np.fill_diagonal(inside, False)
+    return inside

@@ -1,7 +1,8 @@
-"""Compiled kernels (numba) of injmesh's hot loops.
+"""Compiled kernels (numba).
 
-Nothing outside this package imports it at ``import injmesh`` time: numba and the compiled
-functions load only when a kernel module is imported.
+Each module here is imported lazily, by the stage that needs it, so that ``import injmesh`` stays
+fast and numba is loaded only when a kernel runs.  Every kernel is the single implementation of
+its algorithm (no NumPy twin) and is deterministic: same inputs, bit-identical output.
 
 * :mod:`injmesh.kernels.predicates` -- adaptive-precision exact ``orient2d`` and ``incircle``.
 * :mod:`injmesh.kernels.delaunay` -- incremental Delaunay triangulation with a live adjacency

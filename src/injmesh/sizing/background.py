@@ -1,0 +1,258 @@
+"""The background grid on which sizes are sampled, gradation-limited and measured.
+
+One uniform grid of square cells covers the domain's bounding box with a margin of
+``PAD`` cells.  Its spacing follows the smallest size, ``h_min / CELLS_PER_H``, but the grid never
+has more than ``max_cells`` nodes (default ``DEFAULT_MAX_CELLS``): past that the spacing grows
+to ``sqrt(box area / max_cells)`` and the field is coarser than the size it samples (this is
+reported in the log).
+
+A user's h is sampled only at nodes inside the domain (d <= 0) and, for the nodes just outside
+(an 8-neighbour is inside), at their projection onto the boundary (Eq. 3.2), so a size that is
+meaningless outside the domain is never asked for a value there.  Other nodes impose nothing.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .. import _tolerances as tol
+from ..geometry import Domain, GeometryError
+from ._core import SizeError, SizeFunction
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+logger = logging.getLogger(__name__)
+
+#: Background grid nodes per smallest size: the spacing is ``h_min / CELLS_PER_H``.
+CELLS_PER_H = 4.0
+#: Default cap on the number of background grid nodes (about 1000 x 1000).
+DEFAULT_MAX_CELLS = 1_000_000
+#: Margin of the grid around the domain's bounding box, in cells.
+PAD = 2
+#: Nodes per side of the coarse grid that estimates h_min before the grid is chosen.
+PROBE_CELLS = 64
+#: A grid resolves the domain's thickness when it has this many inside nodes per inside node
+#: next to the boundary (about six nodes across); otherwise it is refined, at most
+#: THIN_REFINEMENTS times.
+THICK_RATIO = 3.0
+THIN_REFINEMENTS = 12
+#: Points per sdf call while sampling the grid (bounds the memory of sdf temporaries).
+CHUNK = 1 << 18
+
+
+@dataclass(frozen=True)
+class Background:
+    """A uniform grid over a domain's box, with the signed distance sampled at its nodes."""
+
+    x: FloatArray  # (nx,)
+    y: FloatArray  # (ny,)
+    d: FloatArray  # (ny, nx), d at the nodes
+    spacing: float
+    capped: bool  # the cell cap made the spacing coarser than asked
+
+    @property
+    def inside(self) -> BoolArray:
+        """Nodes inside the domain or on its boundary, ``(ny, nx)``."""
+        return self.d <= 0
+
+    @property
+    def band(self) -> BoolArray:
+        """Nodes outside with an inside node among their eight neighbours, ``(ny, nx)``."""
+        inside = self.inside
+        near = inside.copy()
+        near[1:, :] |= inside[:-1, :]
+        near[:-1, :] |= inside[1:, :]
+        wide = near.copy()
+        wide[:, 1:] |= near[:, :-1]
+        wide[:, :-1] |= near[:, 1:]
+        return wide & ~inside
+
+    def nodes(self, mask: BoolArray) -> FloatArray:
+        """Coordinates of the masked nodes, ``(k, 2)``, in row-major order."""
+        j, i = np.nonzero(mask)
+        return np.stack([self.x[i], self.y[j]], axis=1)
+
+
+def cells(box: tuple[float, float, float, float], spacing: float) -> tuple[int, int]:
+    """Grid nodes along x and y for a box and a spacing, margin included."""
+    x0, y0, x1, y1 = box
+    return (
+        int(math.ceil((x1 - x0) / spacing)) + 1 + 2 * PAD,
+        int(math.ceil((y1 - y0) / spacing)) + 1 + 2 * PAD,
+    )
+
+
+def check_grid_options(spacing: float | None, max_cells: int) -> None:
+    """Validate the public ``spacing=`` and ``max_cells=`` arguments."""
+    if spacing is not None and not (isinstance(spacing, (int, float, np.number)) and math.isfinite(
+            float(spacing)) and spacing > 0):
+        raise SizeError(f"spacing must be a positive finite length, got {spacing!r}")
+    if not (isinstance(max_cells, (int, np.integer)) and max_cells >= 16):
+        raise SizeError(f"max_cells must be an integer of at least 16, got {max_cells!r}")
+
+
+def fit_spacing(domain: Domain, wanted: float, max_cells: int, explicit: bool) -> tuple[float, bool]:
+    """``wanted``, or the smallest spacing whose grid has at most ``max_cells`` nodes."""
+    x0, y0, x1, y1 = domain.bbox
+    nx, ny = cells(domain.bbox, wanted)
+    if nx * ny <= max_cells:
+        return wanted, False
+    if explicit:
+        raise SizeError(
+            f"spacing={wanted:g} needs a {nx} x {ny} background grid, more than max_cells={max_cells}; "
+            "raise max_cells or pass a larger spacing"
+        )
+    s = wanted
+    # Solve (w/s + 1 + 2 PAD)(h/s + 1 + 2 PAD) <= max_cells for s, then round up until it fits.
+    w, h = x1 - x0, y1 - y0
+    m = 1 + 2 * PAD
+    a, b, c = max_cells - m * m, -m * (w + h), -w * h
+    if a > 0:
+        s = max(s, (-b + math.sqrt(b * b - 4 * a * c)) / (2 * a))
+    while cells(domain.bbox, s)[0] * cells(domain.bbox, s)[1] > max_cells:
+        s *= 1.01
+    return s, True
+
+
+def resolving_background(domain: Domain, spacing: float, max_cells: int, explicit: bool) -> Background:
+    """The background grid of about ``spacing``, refined where the domain is thin everywhere.
+
+    A domain only a few cells thick (a long channel in a box sized by its length, or a size
+    much larger than the width) would leave its medial axis unresolved: while fewer than
+    THICK_RATIO inside nodes stand per inside node next to the boundary, the spacing is halved
+    (at most THIN_REFINEMENTS times, within ``max_cells``).  An explicit spacing is kept.
+    """
+    s, capped = fit_spacing(domain, spacing, max_cells, explicit)
+    grid = make_background(domain, s, capped, check=False)
+    for _ in range(0 if explicit else THIN_REFINEMENTS):
+        inside = grid.inside
+        edge = inside & ~(
+            np.pad(inside, 1, constant_values=False)[:-2, 1:-1]
+            & np.pad(inside, 1, constant_values=False)[2:, 1:-1]
+            & np.pad(inside, 1, constant_values=False)[1:-1, :-2]
+            & np.pad(inside, 1, constant_values=False)[1:-1, 2:]
+        )
+        if inside.sum() >= THICK_RATIO * max(1, int(edge.sum())):
+            break
+        finer, capped = fit_spacing(domain, 0.5 * s, max_cells, explicit=False)
+        if finer > 0.75 * s:
+            break  # the cell cap allows no finer grid
+        s = finer
+        grid = make_background(domain, s, capped, check=False)
+    return make_background(domain, s, capped) if not grid.inside.any() else grid
+
+
+def make_background(domain: Domain, spacing: float, capped: bool = False, check: bool = True) -> Background:
+    """Sample the signed distance on a grid of the given spacing over the domain's box."""
+    x0, y0, _, _ = domain.bbox
+    nx, ny = cells(domain.bbox, spacing)
+    x = x0 + spacing * (np.arange(nx, dtype=np.float64) - PAD)
+    y = y0 + spacing * (np.arange(ny, dtype=np.float64) - PAD)
+    d = np.empty(nx * ny)
+    rows = max(1, CHUNK // nx)
+    for j0 in range(0, ny, rows):
+        yy = y[j0 : j0 + rows]
+        X, Y = np.meshgrid(x, yy)
+        d[j0 * nx : j0 * nx + X.size] = domain.sdf(np.stack([X.ravel(), Y.ravel()], axis=1))
+    grid = Background(x=x, y=y, d=d.reshape(ny, nx), spacing=float(spacing), capped=capped)
+    if check and not grid.inside.any():
+        raise SizeError(
+            f"no background grid node (spacing {spacing:g}) lies inside the domain: it is thinner "
+            "than the grid; pass a smaller spacing"
+        )
+    return grid
+
+
+def densify(loop: FloatArray, step: float) -> FloatArray:
+    """A closed polyline with extra vertices so that no segment is longer than ``step``."""
+    nxt = np.roll(loop, -1, axis=0)
+    pieces = np.maximum(1, np.ceil(np.hypot(*(nxt - loop).T) / step)).astype(np.intp)
+    start = np.repeat(loop, pieces, axis=0)
+    delta = np.repeat(nxt - loop, pieces, axis=0)
+    t = np.arange(int(pieces.sum())) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    frac = t / np.repeat(pieces, pieces)
+    return start + frac[:, None] * delta
+
+
+def probe_min(h: SizeFunction, domain: Domain) -> float:
+    """The smallest size at a coarse sample of the domain: nodes inside and boundary points."""
+    x0, y0, x1, y1 = domain.bbox
+    step = max(x1 - x0, y1 - y0) / PROBE_CELLS
+    pts = []
+    try:
+        coarse = make_background(domain, step)
+        pts.append(coarse.nodes(coarse.inside))
+    except SizeError:  # thinner than the probe grid: its boundary points still tell h_min
+        pass
+    try:
+        pts += [densify(loop, step) for loop in domain.boundary_loops(step)]
+    except ValueError:  # a domain whose boundary cannot be traced at this scale: nodes suffice
+        pass
+    if not pts:
+        raise GeometryError("the domain is empty: no node of the probe grid inside, no boundary curve")
+    p = np.concatenate(pts)
+    return float(h.restricted(domain)(p).min())
+
+
+def sample_size(h: SizeFunction, domain: Domain, grid: Background, rate: float = 0.0) -> FloatArray:
+    """h at the grid nodes inside the domain and at the boundary projections of the band nodes.
+
+    A band node ``y`` with boundary projection ``b`` gets ``h(b) + rate |y - b|``: the size at
+    the boundary, extended outward at the gradation rate, so that a size that already satisfies
+    the limit is not lowered inside by its own boundary values.
+
+    Returns ``(ny, nx)`` sizes, clamped to the domain's diameter, with ``inf`` at nodes that
+    impose nothing (outside, beyond the band, or whose projection did not reach the boundary).
+    """
+    out = np.full(grid.d.shape, np.inf)
+    inside = grid.inside
+    out[inside] = h(grid.nodes(inside))
+    band = grid.band
+    if band.any():
+        q = domain.project(grid.nodes(band))
+        on = domain.sdf(q) <= tol.ON_BOUNDARY * domain.diameter
+        vals = np.full(len(q), np.inf)
+        if on.any():
+            y = grid.nodes(band)[on]
+            vals[on] = h(q[on]) + rate * np.hypot(*(y - q[on]).T)
+        out[band] = vals
+    # A size beyond the diameter means one element across everything: clamp it (1e300 stays sane).
+    return np.where(np.isfinite(out), np.minimum(out, domain.diameter), np.inf)
+
+
+def sampled_grid(
+    h: SizeFunction,
+    domain: Domain,
+    spacing: float | None,
+    max_cells: int,
+    rate: float = 0.0,
+    max_spacing: float = np.inf,
+) -> tuple[Background, FloatArray]:
+    """The background grid for ``h`` on ``domain`` and h sampled on it (see the module docstring).
+
+    Without ``spacing`` the grid follows ``min(h_min / CELLS_PER_H, max_spacing)`` with ``h_min``
+    estimated on a coarse probe; when the grid then finds sizes below half that estimate, it is
+    refined once.
+    """
+    if spacing is not None:
+        grid = resolving_background(domain, float(spacing), max_cells, explicit=True)
+        return grid, sample_size(h, domain, grid, rate)
+    h_min = probe_min(h, domain)
+    grid = resolving_background(domain, min(h_min / CELLS_PER_H, max_spacing), max_cells, explicit=False)
+    values = sample_size(h, domain, grid, rate)
+    finer = float(values.min())
+    if not grid.capped and finer / CELLS_PER_H < 0.5 * grid.spacing:
+        grid = resolving_background(domain, finer / CELLS_PER_H, max_cells, explicit=False)
+        values = sample_size(h, domain, grid, rate)
+    if grid.capped:
+        logger.info(
+            "background grid capped at %d nodes: spacing %.3g for a smallest size %.3g",
+            max_cells, grid.spacing, float(values.min()),
+        )
+    return grid, values

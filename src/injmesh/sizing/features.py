@@ -1,0 +1,491 @@
+"""Local feature size: how thick the domain is at each point, and the effective size it implies.
+
+The medial axis of a domain is the set of points with two or more nearest boundary points; there
+the gradient of the signed distance d is discontinuous.  On a background grid, two neighbouring
+nodes (8-neighbourhood) whose nearest boundary points lie on *roughly opposite walls* -- the unit
+vectors n = (x - b(x)) / |x - b(x)| from their nearest boundary points b make an angle of more
+than ``180 - corner_angle`` degrees -- straddle the medial axis, and both are marked as
+medial-axis nodes.  Branches of the medial axis that run into a corner wider than
+``corner_angle`` (the diagonals of a square) join walls that are not opposite and are not
+marked, so convex corners of a thick region do not make it "thin"; a spike or a neck, whose
+walls are nearly parallel, is.
+
+The feature size is then Persson's local feature size (Persson 2006, Section 2.2), doubled so
+that it is a *width*:
+
+    feature_size(x) = 2 (|d(x)| + d_MA(x)),
+
+with |d(x)| the distance to the boundary and d_MA(x) the distance to the nearest marked
+medial-axis node.  Across a channel of width w it is w everywhere (|d| + d_MA = w / 2 from wall to
+centre line); at the centre of a disc of radius R it is 2R.  It is floored at ``min_size`` and
+capped at twice the domain's diameter (the value where no medial axis is marked).  Nearest
+boundary points are computed exactly on the boundary polylines (primitives' own outlines, or the
+curves traced on the background grid and projected onto the boundary).  Features thinner than
+about two grid spacings would hold no grid node: unless a spacing is given, gaps between facing
+walls are also measured on the boundary polylines themselves (:func:`thinnest_gap`: necks,
+straits, slits, a hole near the rim, not the tip of a wedge), and a gap narrower than three
+spacings refines the grid to a third of it (at most 16 times finer, within ``max_cells``).
+Thinner features are missed.  An isolated medial-axis
+point (the centre of a square, where four walls are equidistant) may be seen or not depending on
+how the grid falls; missing one only raises the feature size, and only where the region is thick.
+
+Cost: one signed-distance call on the grid, exact nearest boundary points (a k-d tree over the
+boundary polylines) for the nodes next to the boundary and for the medial-axis candidates, two
+Euclidean distance transforms (scipy.ndimage); the other nodes take the nearest point of their
+nearest boundary node.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..geometry import Circle, Domain, GeometryError, Polygon, as_domain
+from ._core import SizeError, SizeFunction, SizeLike, as_size_function
+from .background import (
+    DEFAULT_MAX_CELLS,
+    Background,
+    check_grid_options,
+    densify,
+    fit_spacing,
+    make_background,
+    resolving_background,
+    sample_size,
+    sampled_grid,
+)
+from .fields import GriddedSize
+from .gradation import check_rate, limit_grid
+
+FloatArray = NDArray[np.float64]
+
+#: Default background spacing of :func:`feature_size`, as a fraction of the domain's diameter.
+FEATURE_CELLS = 256
+#: Nearest boundary vertices examined per node (with their two segments each).
+NEAREST_VERTICES = 3
+#: Boundary vertices examined around each vertex when looking for a facing wall across a gap,
+#: gaps narrower than GAP_WIDTHS grid spacings that refine the grid, and the largest refinement.
+GAP_NEIGHBOURS = 24
+GAP_WIDTHS = 3.0
+GAP_REFINE = 16.0
+#: A gap counts when the boundary between its two sides is this many times longer than the gap
+#: (so the two walls of a sharp wedge, joined at its tip, do not count).
+GAP_DETOUR = 20.0
+#: Neighbouring nodes whose approximate nearest boundary points are more than this many grid
+#: spacings apart straddle the medial axis, perhaps: their nearest points are computed exactly.
+CANDIDATE_JUMP = 2.0
+
+
+def _positive(name: str, value: float | None) -> float | None:
+    if value is None:
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
+        raise SizeError(f"{name} must be a positive number, got {value!r}")
+    if not (math.isfinite(float(value)) and value > 0):
+        raise SizeError(f"{name} must be positive and finite, got {value!r}")
+    return float(value)
+
+
+def _boundary(domain: Domain, grid: Background) -> tuple[FloatArray, FloatArray, NDArray[np.intp]]:
+    """Boundary segments no longer than half a grid spacing.
+
+    Returns the start ``(m, 2)`` and end ``(m, 2)`` of each segment and, for each segment, the
+    index of the one before it on its loop.
+    """
+    step = 0.5 * grid.spacing
+    if isinstance(domain, (Polygon, Circle)):
+        loops = domain.boundary_loops(step)
+    else:
+        from ..geometry.tracing import loops_from_grid
+
+        loops = [domain.project(loop) for loop in loops_from_grid(grid.x, grid.y, grid.d)]
+    a, b, prev = [], [], []
+    offset = 0
+    for loop in loops:
+        if len(loop) < 2:
+            continue
+        dense = densify(np.asarray(loop, dtype=np.float64), step)
+        a.append(dense)
+        b.append(np.roll(dense, -1, axis=0))
+        prev.append(offset + (np.arange(len(dense)) - 1) % len(dense))
+        offset += len(dense)
+    if not a:
+        raise GeometryError("the domain has no boundary curve at the background grid's resolution")
+    return np.concatenate(a), np.concatenate(b), np.concatenate(prev)
+
+
+def _arc_positions(seg_a: FloatArray, seg_b: FloatArray, prev: NDArray[np.intp]) -> tuple[
+        NDArray[np.intp], FloatArray, FloatArray]:
+    """Loop number, arc length from the loop's first vertex, and loop length, per vertex."""
+    first = prev > np.arange(len(prev))  # a loop's first vertex follows its last
+    loop = np.cumsum(first) - 1
+    length = np.hypot(*(seg_b - seg_a).T)
+    total = np.bincount(loop, weights=length)
+    start = np.concatenate([[0.0], np.cumsum(length)[:-1]])
+    return loop, start - start[np.flatnonzero(first)][loop], total[loop]
+
+
+def _nearest_on_boundary(
+    p: FloatArray, seg_a: FloatArray, seg_b: FloatArray, prev: NDArray[np.intp]
+) -> tuple[FloatArray, FloatArray]:
+    """Distance from each point to the boundary polylines and the nearest boundary point.
+
+    Segment ``k`` runs from vertex ``k`` (``seg_a[k]``) to the next one; the candidates are the
+    two segments at each of the ``NEAREST_VERTICES`` nearest vertices.
+    """
+    from scipy.spatial import cKDTree
+
+    k = min(NEAREST_VERTICES, len(seg_a))
+    _, near = cKDTree(seg_a).query(p, k=k)
+    near = near.reshape(len(p), k)
+    cand = np.concatenate([near, prev[near]], axis=1)  # (n, 2k) segment ids
+    a, b = seg_a[cand], seg_b[cand]
+    ab = b - a
+    L2 = np.maximum(np.einsum("nkj,nkj->nk", ab, ab), np.finfo(float).tiny)
+    t = np.clip(np.einsum("nkj,nkj->nk", p[:, None, :] - a, ab) / L2, 0.0, 1.0)
+    foot = a + t[..., None] * ab
+    dist = np.hypot(*(p[:, None, :] - foot).transpose(2, 0, 1))
+    best = np.argmin(dist, axis=1)
+    rows = np.arange(len(p))
+    return dist[rows, best], foot[rows, best]
+
+
+def thinnest_gap(domain: Domain, grid: Background, corner_angle: float) -> float:
+    """The narrowest gap between facing walls, measured on the boundary itself (inf if none).
+
+    For every boundary vertex v (polylines at half the grid spacing) the nearest
+    ``GAP_NEIGHBOURS`` vertices are examined: a vertex u across the domain (the midpoint of uv
+    inside) whose wall faces v's within ``corner_angle`` (uv within that angle of both inward
+    normals) bounds a gap of width |uv|.  This sees necks, straits and slits too thin to hold a
+    grid node, which the medial-axis test on the grid cannot.
+    """
+    from scipy.spatial import cKDTree
+
+    seg_a, seg_b, prev = _boundary(domain, grid)
+    if len(seg_a) < 4:
+        return np.inf
+    tangent = seg_b - seg_a[prev]
+    normal = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
+    normal /= np.maximum(np.hypot(*normal.T), np.finfo(float).tiny)[:, None]
+    # Orient each normal into the domain (loops from any source, whatever their direction).
+    probe = 0.25 * grid.spacing * normal
+    flip = domain.sdf(seg_a + probe) > domain.sdf(seg_a - probe)
+    normal[flip] *= -1
+    k = min(GAP_NEIGHBOURS, len(seg_a))
+    dist, idx = cKDTree(seg_a).query(seg_a, k=k)
+    v = np.repeat(np.arange(len(seg_a)), k)
+    u, dist = idx.ravel(), dist.ravel()
+    keep = (dist > 0) & (dist < GAP_WIDTHS * grid.spacing)
+    v, u, dist = v[keep], u[keep], dist[keep]
+    e = (seg_a[u] - seg_a[v]) / dist[:, None]
+    cos = math.cos(math.radians(corner_angle))
+    facing = (np.einsum("kj,kj->k", e, normal[v]) > cos) & (-np.einsum("kj,kj->k", e, normal[u]) > cos)
+    v, u, dist = v[facing], u[facing], dist[facing]
+    # Walls meeting at a nearby sharp corner are a wedge, not a gap: the boundary between v and
+    # u must be long compared with the gap (around a lobe, a hole or a deep notch).
+    loop, along, total = _arc_positions(seg_a, seg_b, prev)
+    arc = np.abs(along[u] - along[v])
+    arc = np.where(loop[u] == loop[v], np.minimum(arc, total[v] - arc), np.inf)
+    around = arc > GAP_DETOUR * dist
+    v, u, dist = v[around], u[around], dist[around]
+    if not len(v):
+        return np.inf
+    across = domain.sdf(0.5 * (seg_a[u] + seg_a[v])) < 0
+    return float(dist[across].min()) if across.any() else np.inf
+
+
+def refine_for_gaps(domain: Domain, grid: Background, corner_angle: float, max_cells: int) -> Background:
+    """A finer grid when a gap between facing walls is under GAP_WIDTHS spacings wide.
+
+    The spacing becomes a third of the narrowest gap (at most GAP_REFINE times finer, within
+    ``max_cells``) so the gap holds grid nodes and its medial axis is resolved.
+    """
+    gap = thinnest_gap(domain, grid, corner_angle)
+    if not gap < GAP_WIDTHS * grid.spacing:
+        return grid
+    wanted = max(gap / 3.0, grid.spacing / GAP_REFINE)
+    finer, capped = fit_spacing(domain, wanted, max_cells, explicit=False)
+    if finer >= grid.spacing:
+        return grid
+    return make_background(domain, finer, capped)
+
+
+def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle: float) -> FloatArray:
+    """The feature size at the grid nodes inside the domain and next to it; ``inf`` elsewhere."""
+    from scipy import ndimage
+
+    inside = grid.inside
+    band = grid.band
+    near = inside | band
+    shape = grid.d.shape
+    # Exact nearest boundary points for the nodes next to the boundary (the seeds); every other
+    # node takes the nearest point of its nearest seed (a Euclidean distance transform), off by
+    # about a spacing along the wall: its distance r is then accurate to about a spacing, but
+    # its direction to the wall is not reliable near the medial axis.  So the medial axis is
+    # found in two passes: candidates first, then the exact test on exact nearest points.
+    seeds = band.copy()
+    seeds[:-1, :] |= band[1:, :] & inside[:-1, :]
+    seeds[1:, :] |= band[:-1, :] & inside[1:, :]
+    seeds[:, :-1] |= band[:, 1:] & inside[:, :-1]
+    seeds[:, 1:] |= band[:, :-1] & inside[:, 1:]
+    seg_a, seg_b, prev = _boundary(domain, grid)
+    exact = seeds.copy()
+    feet = np.zeros(shape + (2,))
+    feet[seeds] = _nearest_on_boundary(grid.nodes(seeds), seg_a, seg_b, prev)[1]
+    _, (jj, ii) = ndimage.distance_transform_edt(~seeds, return_indices=True)
+    feet = feet[jj, ii]
+    xy = np.stack(np.meshgrid(grid.x, grid.y), axis=-1)
+    ny, nx = shape
+    # Neighbour pairs (a, b) as two slices of the grid: east, north, north-east, north-west.
+    pairs = [
+        (
+            (slice(0, ny - dj), slice(max(0, -di), nx - max(0, di))),
+            (slice(dj, ny), slice(max(0, di), nx + min(0, di))),
+        )
+        for dj, di in ((0, 1), (1, 0), (1, 1), (1, -1))
+    ]
+
+    def facing(limit: float) -> tuple[NDArray[np.bool_], FloatArray, FloatArray, list[NDArray[np.bool_]]]:
+        """Distances, unit directions from the walls, and the node pairs facing within ``limit``."""
+        r = np.hypot(*(xy - feet).transpose(2, 0, 1))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            unit = np.where((r > 0)[..., None], (xy - feet) / r[..., None], 0.0)
+        # Nodes closer to the boundary than half a spacing are left out: on the boundary itself
+        # the direction to the polyline's nearest point is arbitrary (a node on a circle lies
+        # outside its chords), and no medial axis the grid resolves passes that close to a wall.
+        deep = inside & (r > 0.5 * grid.spacing)
+        hits = [
+            deep[sa] & deep[sb] & (np.einsum("...j,...j->...", unit[sa], unit[sb]) < limit)
+            for sa, sb in pairs
+        ]
+        marked = np.zeros(shape, dtype=bool)
+        for (sa, sb), hit in zip(pairs, hits, strict=True):
+            marked[sa] |= hit
+            marked[sb] |= hit
+        return marked, r, unit, hits
+
+    # Candidates: where the approximate nearest point jumps between neighbours (near the medial
+    # axis the nearest seed may lie on any of the walls at about the same distance, so the
+    # approximate direction is not to be trusted there), grown by one node.
+    # The jump that counts grows with the distance to the wall (half of it): inside a convex
+    # wall the nearest points of neighbours spread out by spacing * R / (R - r) anyway, while
+    # across the medial axis they jump from one wall to the other, about 2 r apart.
+    r_approx = np.hypot(*(xy - feet).transpose(2, 0, 1))
+    candidates = np.zeros(shape, dtype=bool)
+    for sa, sb in pairs:
+        gap = np.hypot(*(feet[sa] - feet[sb]).transpose(2, 0, 1))
+        enough = np.maximum(CANDIDATE_JUMP * grid.spacing, 0.5 * np.minimum(r_approx[sa], r_approx[sb]))
+        jump = inside[sa] & inside[sb] & (gap > enough)
+        candidates[sa] |= jump
+        candidates[sb] |= jump
+    grown = candidates.copy()
+    grown[1:, :] |= candidates[:-1, :]
+    grown[:-1, :] |= candidates[1:, :]
+    candidates = grown.copy()
+    candidates[:, 1:] |= grown[:, :-1]
+    candidates[:, :-1] |= grown[:, 1:]
+    todo = candidates & inside & ~exact
+    if todo.any():
+        feet[todo] = _nearest_on_boundary(xy[todo], seg_a, seg_b, prev)[1]
+    medial, r, unit, hits = facing(-math.cos(math.radians(corner_angle)))
+    axis_point = np.zeros(shape + (2,))  # where the medial axis crosses a marked node's pair
+    for (sa, sb), hit in zip(pairs, hits, strict=True):
+        if not hit.any():
+            continue
+        # The crossing x_a + t (x_b - x_a) is where the distances to the two walls (planes
+        # through the nearest points, normals n_a and n_b) are equal.
+        na, nb = unit[sa][hit], unit[sb][hit]
+        step = xy[sb][hit] - xy[sa][hit]
+        ra, rb = r[sa][hit], r[sb][hit]
+        grow_a = np.einsum("kj,kj->k", step, na)
+        grow_b = -np.einsum("kj,kj->k", step, nb)
+        total = grow_a + grow_b
+        t = np.where(total > 0, (rb - ra + grow_b) / np.where(total > 0, total, 1.0), 0.5)
+        crossing = xy[sa][hit] + np.clip(t, 0.0, 1.0)[:, None] * step
+        for sl in (sa, sb):
+            view = axis_point[sl]
+            view[hit] = crossing
+            axis_point[sl] = view
+    fs = np.full(shape, np.inf)
+    if medial.any():
+        # d_MA: distance to the crossing recorded at the nearest marked node.
+        _, (mj, mi) = ndimage.distance_transform_edt(~medial, return_indices=True)
+        d_ma = np.hypot(*(xy - axis_point[mj, mi]).transpose(2, 0, 1))
+        # Outside (the band) r counts negatively: the formula continues linearly through the
+        # wall instead of folding back up, so interpolation at the wall gives the width.
+        fs[near] = 2.0 * (np.where(inside[near], r[near], -r[near]) + d_ma[near])
+    fs[near] = np.clip(fs[near], min_size, 2.0 * domain.diameter)
+    return fs
+
+
+def _fill_outside(values: FloatArray) -> FloatArray:
+    """Nodes that impose nothing (``inf``) take the value of the nearest node that does."""
+    from scipy import ndimage
+
+    known = np.isfinite(values)
+    if known.all():
+        return values
+    _, (jj, ii) = ndimage.distance_transform_edt(~known, return_indices=True)
+    out: FloatArray = values[jj, ii]
+    return out
+
+
+def feature_size(
+    domain: Domain | Callable[[FloatArray], FloatArray],
+    *,
+    spacing: float | None = None,
+    min_size: float | None = None,
+    corner_angle: float = 30.0,
+    max_cells: int = DEFAULT_MAX_CELLS,
+    bbox: ArrayLike | None = None,
+) -> GriddedSize:
+    """The local thickness of the domain: about w across a channel of width w.
+
+    See the module docstring for the formula, ``2 (|d| + d_MA)`` with d_MA the distance to the
+    medial axis between roughly opposite walls.
+
+    Parameters
+    ----------
+    domain : Domain or callable
+        The domain (a plain signed distance needs ``bbox``).
+    spacing : float, optional
+        Background grid spacing (default: the domain's diameter / 256, or ``min_size / 2`` when
+        that is smaller, enlarged to keep at most ``max_cells`` nodes).  Features thinner than
+        about two spacings may be missed.
+    min_size : float, optional
+        Floor of the result (default: two grid spacings), so it never vanishes at the tip of a
+        spike or in a neck that pinches to zero width.
+    corner_angle : float
+        Degrees.  Medial-axis branches into corners at least this wide (a square's diagonals)
+        are ignored; sharper wedges count as thin parts.
+    max_cells : int
+        Cap on the background grid's nodes.
+    bbox : (xmin, ymin, xmax, ymax), optional
+        Required for a callable ``domain``.
+
+    Returns
+    -------
+    GriddedSize
+        Feature sizes on the background grid, in ``[min_size, 2 * diameter]``; nodes outside
+        the domain take the value of the nearest node inside.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from injmesh import Rectangle
+    >>> fs = feature_size(Rectangle((0, 0), (4, 0.2)), spacing=0.01)
+    >>> bool(np.all(np.abs(fs(np.array([[2.0, 0.0], [2.0, 0.1], [1.0, 0.05]])) - 0.2) < 0.02))
+    True
+    """
+    check_grid_options(spacing, max_cells)
+    floor = _positive("min_size", min_size)
+    angle = _positive("corner_angle", corner_angle)
+    assert angle is not None
+    if not angle < 180:
+        raise SizeError(f"corner_angle must be below 180 degrees, got {corner_angle!r}")
+    dom = as_domain(domain, bbox=bbox)
+    if spacing is None:
+        wanted = dom.diameter / FEATURE_CELLS
+        if floor is not None:
+            wanted = min(wanted, floor / 2)
+        grid = resolving_background(dom, wanted, int(max_cells), explicit=False)
+    else:
+        grid = resolving_background(dom, float(spacing), int(max_cells), explicit=True)
+    if spacing is None:
+        grid = refine_for_gaps(dom, grid, angle, int(max_cells))
+    fs = feature_grid(dom, grid, 2.0 * grid.spacing if floor is None else floor, angle)
+    return GriddedSize._trusted(grid.x, grid.y, _fill_outside(fs))
+
+
+class _Lower:
+    """``min(a(p), b(p))`` of two size functions (used when the grid is coarser than h)."""
+
+    def __init__(self, a: Callable[[FloatArray], FloatArray], b: Callable[[FloatArray], FloatArray]):
+        self.a, self.b = a, b
+
+    def __call__(self, p: FloatArray) -> FloatArray:
+        return np.minimum(self.a(p), self.b(p))
+
+
+def effective_size(
+    size: SizeLike,
+    domain: Domain | Callable[[FloatArray], FloatArray],
+    *,
+    layers: float = 2,
+    rate: float | None = 0.2,
+    min_size: float | None = None,
+    corner_angle: float = 30.0,
+    spacing: float | None = None,
+    max_cells: int = DEFAULT_MAX_CELLS,
+    bbox: ArrayLike | None = None,
+) -> SizeFunction:
+    """The size the mesher should follow: ``min(h, feature_size / layers)``, gradation-limited.
+
+    Parameters
+    ----------
+    size : float, callable or size field
+        The user's h; evaluated only inside the domain and on its boundary.
+    domain : Domain or callable
+        The domain (a plain signed distance needs ``bbox``).
+    layers : float
+        Elements across the thinnest parts: the size is at most ``feature_size / layers``.
+    rate : float or None
+        Gradation limit |grad h| <= rate (:func:`limit_gradation`); None to skip it.
+    min_size : float, optional
+        Floor of the feature size (default: two background grid spacings).
+    corner_angle : float
+        See :func:`feature_size`.
+    spacing, max_cells :
+        Background grid, as in :func:`limit_gradation`; the default spacing is the smaller of
+        h_min / 4 and the domain's diameter / 256, so that features thinner than h are seen.
+    bbox : (xmin, ymin, xmax, ymax), optional
+        Required for a callable ``domain``.
+
+    Returns
+    -------
+    SizeFunction
+        When neither the feature size nor the gradation limit changes h at any grid node, h
+        itself restricted to the domain (:meth:`SizeFunction.restricted`), so a size that needs
+        no correction is followed exactly.  Otherwise the corrected sizes on the background grid
+        (a :class:`GriddedSize`); if the grid had to be coarser than h_min / 4 (``max_cells``),
+        the minimum of that and the restricted h, so no detail of h is lost.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from injmesh import Rectangle
+    >>> channel = Rectangle((0, 0), (2, 0.1))
+    >>> h = effective_size(0.2, channel)
+    >>> bool(h(np.array([[1.0, 0.05]]))[0] < 0.06)
+    True
+    """
+    n_layers = _positive("layers", layers)
+    assert n_layers is not None
+    g = None if rate is None else check_rate(rate)
+    floor = _positive("min_size", min_size)
+    angle = _positive("corner_angle", corner_angle)
+    assert angle is not None
+    check_grid_options(spacing, max_cells)
+    dom = as_domain(domain, bbox=bbox)
+    h = as_size_function(size)
+    grid, h0 = sampled_grid(
+        h, dom, spacing, int(max_cells), 0.0 if g is None else g, dom.diameter / FEATURE_CELLS
+    )
+    if spacing is None:
+        finer = refine_for_gaps(dom, grid, angle, int(max_cells))
+        if finer is not grid:
+            grid, h0 = finer, sample_size(h, dom, finer, 0.0 if g is None else g)
+    fs = feature_grid(dom, grid, 2.0 * grid.spacing if floor is None else floor, angle)
+    target = np.minimum(h0, fs / n_layers)
+    out = target if g is None else limit_grid(target, grid, g)
+    # Changes outside (band nodes lowered to the limited extension) do not count, nor rounding:
+    # a cone of slope exactly ``rate`` comes back lower by an ulp here and there.
+    inside = grid.inside
+    if np.all(out[inside] >= h0[inside] * (1.0 - 1e-12)):
+        return h.restricted(dom)
+    field = GriddedSize._trusted(grid.x, grid.y, np.minimum(_fill_outside(out), dom.diameter))
+    if grid.capped:
+        return SizeFunction(_Lower(field, h.restricted(dom)))
+    return SizeFunction(field)

@@ -1,0 +1,161 @@
+"""The checks every mesh passes before ``generate`` returns it.
+
+A mesh is *valid* when it is a conforming triangulation of the domain as meshed by Step 1:
+
+* every node is used by a triangle, and no two nodes coincide;
+* every triangle is counter-clockwise and not degenerate (``q >= DEGENERATE_Q``);
+* no two triangles overlap (each directed edge occurs once, each edge in at most two triangles);
+* the mesh's boundary edges are exactly the boundary segments of Step 1, with the domain on
+  their left: none lost, none extra (an extra one is a gap in the mesh or a triangle that bridges
+  a notch outside the domain);
+* every boundary node lies on the domain's boundary (``|d| <= ON_BOUNDARY * diameter``).
+
+The last two make "every triangle inside" exact: the triangles fill the polygon bounded by the
+boundary segments and nothing else.  Each failed check becomes one :class:`Defect` naming what
+failed, how often, and where (coordinates), so a user can find it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from . import _tolerances as tol
+from .quality import signed_areas, triangle_quality
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+
+#: A triangle with q below this is degenerate: an angle under about 0.03 degrees, or two nodes
+#: closer than about 5e-4 of its longest edge.  Even a 1-degree input corner allows q = 0.035,
+#: so no mesh injmesh should make comes near it; such triangles are useless to a solver.
+DEGENERATE_Q = 1e-3
+
+#: Two nodes closer than this fraction of the domain diameter are duplicates.
+DUPLICATE = 1e-9
+
+#: Locations listed per defect.
+MAX_WHERE = 10
+
+
+@dataclass(frozen=True)
+class Defect:
+    """One kind of failure found in a mesh.
+
+    Attributes
+    ----------
+    kind : str
+        What failed, e.g. ``"lost boundary segment"``.
+    count : int
+        How many times.
+    where : tuple of (x, y)
+        Coordinates of the first ``MAX_WHERE`` occurrences.
+    """
+
+    kind: str
+    count: int
+    where: tuple[tuple[float, float], ...]
+
+    def __str__(self) -> str:
+        at = ", ".join(f"({x:.6g}, {y:.6g})" for x, y in self.where)
+        more = ", ..." if self.count > len(self.where) else ""
+        return f"{self.count} x {self.kind} at {at}{more}"
+
+
+def _defect(kind: str, locations: FloatArray) -> Defect:
+    loc = np.asarray(locations, dtype=float).reshape(-1, 2)
+    where = tuple((float(x), float(y)) for x, y in loc[:MAX_WHERE])
+    return Defect(kind, int(len(loc)), where)
+
+
+def mesh_defects(
+    points: FloatArray,
+    triangles: IntArray,
+    *,
+    walls: IntArray | None = None,
+    sdf: Callable[[FloatArray], FloatArray] | None = None,
+    diameter: float | None = None,
+) -> list[Defect]:
+    """Everything wrong with a mesh; an empty list for a valid one.
+
+    Parameters
+    ----------
+    points : (n, 2) float array
+    triangles : (m, 3) int array
+        Should be counter-clockwise.
+    walls : (k, 2) int array, optional
+        The boundary segments the mesh must have as boundary edges, domain on their left.
+    sdf : callable, optional
+        Signed distance of the domain; with it, boundary nodes must lie on the boundary.
+    diameter : float, optional
+        Scale of the relative tolerances (default: the diagonal of the points' box).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> p = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [5.0, 5.0]])
+    >>> [d.kind for d in mesh_defects(p, np.array([[0, 1, 2]]))]
+    ['unused node']
+    """
+    p = np.asarray(points, dtype=float)
+    t = np.asarray(triangles, dtype=np.intp).reshape(-1, 3)
+    out: list[Defect] = []
+    if len(t) == 0:
+        return [_defect("empty mesh", p[:1])]
+    if diameter is None:
+        diameter = float(np.hypot(*np.ptp(p, axis=0))) if len(p) else 1.0
+
+    used = np.zeros(len(p), dtype=bool)
+    used[t.ravel()] = True
+    if not used.all():
+        out.append(_defect("unused node", p[~used]))
+    pairs = cKDTree(p).query_pairs(DUPLICATE * diameter, output_type="ndarray")
+    if len(pairs):
+        out.append(_defect("duplicate node", p[pairs[:, 0]]))
+
+    centroids = p[t].mean(axis=1)
+    area = signed_areas(p, t)
+    if np.any(area <= 0):
+        out.append(_defect("inverted or flat triangle", centroids[area <= 0]))
+    q = triangle_quality(p, t)
+    degenerate = (area > 0) & (q < DEGENERATE_Q)
+    if degenerate.any():
+        out.append(_defect(f"degenerate triangle (q < {DEGENERATE_Q:g})", centroids[degenerate]))
+
+    half = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    n = len(p)
+    directed = half[:, 0].astype(np.int64) * n + half[:, 1]
+    uniq, count = np.unique(directed, return_counts=True)
+    if np.any(count > 1):
+        d = uniq[count > 1]
+        out.append(_defect("overlapping triangles", 0.5 * (p[d // n] + p[d % n])))
+    undirected = np.minimum(half[:, 0], half[:, 1]).astype(np.int64) * n + np.maximum(half[:, 0], half[:, 1])
+    ukey, uinv, ucount = np.unique(undirected, return_inverse=True, return_counts=True)
+    if np.any(ucount > 2):
+        k = ukey[ucount > 2]
+        out.append(_defect("edge in more than two triangles", 0.5 * (p[k // n] + p[k % n])))
+
+    boundary = half[ucount[uinv.reshape(-1)] == 1]
+    if walls is not None:
+        w = np.asarray(walls, dtype=np.intp).reshape(-1, 2)
+        # A segment with a dropped node (index -1) is lost; it is located at its other node.
+        w = np.where(w < 0, w.max(axis=1, keepdims=True), w)
+        wkey = w[:, 0].astype(np.int64) * n + w[:, 1]
+        bkey = boundary[:, 0].astype(np.int64) * n + boundary[:, 1]
+        lost = ~np.isin(wkey, bkey) | (w[:, 0] == w[:, 1])
+        if lost.any():
+            out.append(_defect("lost boundary segment", 0.5 * (p[w[lost, 0]] + p[w[lost, 1]])))
+        extra = ~np.isin(bkey, wkey)
+        if extra.any():
+            e = boundary[extra]
+            out.append(_defect("boundary edge not on the domain boundary", 0.5 * (p[e[:, 0]] + p[e[:, 1]])))
+    if sdf is not None and len(boundary):
+        nodes = np.unique(boundary)
+        off = np.abs(np.asarray(sdf(p[nodes]), dtype=float)) > tol.ON_BOUNDARY * diameter
+        if off.any():
+            out.append(_defect("boundary node off the boundary", p[nodes[off]]))
+    return out

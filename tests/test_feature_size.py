@@ -1,0 +1,206 @@
+"""Local feature size and the effective size the pipeline follows.
+
+Invariants: a channel of width w has feature size ~w across its whole width, whatever its
+orientation; a thick region's convex corners do not make it thin; spikes and necks do; the floor
+holds; ``effective_size`` is h itself where nothing needs correcting, and at most
+feature_size / layers and gradation-limited where something does.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import injmesh
+from injmesh import Circle, Polygon, Rectangle, SizeError
+from injmesh.sizing import GriddedSize, effective_size, feature_size
+
+
+def rotate(points, angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.asarray(points, dtype=float) @ np.array([[c, s], [-s, c]])
+
+
+def inside_nodes(g: GriddedSize, domain) -> tuple[np.ndarray, np.ndarray]:
+    X, Y = np.meshgrid(g.x, g.y)
+    p = np.stack([X.ravel(), Y.ravel()], axis=1)
+    keep = domain.sdf(p) <= 0
+    return p[keep], g.values.ravel()[keep]
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.5, np.pi / 4])
+def test_channel_width_across_the_whole_width(angle: float) -> None:
+    w = 0.2
+    channel = Polygon(rotate([(0, 0), (4, 0), (4, w), (0, w)], angle))
+    fs = feature_size(channel)
+    across = np.linspace(0, w, 21)
+    for along in (0.5, 2.0, 3.5):
+        q = rotate(np.stack([np.full_like(across, along), across], axis=1), angle)
+        assert np.all(np.abs(fs(q) / w - 1) < 0.08), fs(q)
+
+
+def test_square_corners_do_not_make_it_thin() -> None:
+    square = Rectangle((0, 0), (1, 1))
+    fs = feature_size(square)
+    _, values = inside_nodes(fs, square)
+    assert values.min() > 0.95  # about the side everywhere, corners included
+    assert fs(np.array([[0.0, 0.0], [1.0, 1.0], [0.01, 0.99]])).min() > 0.95
+
+
+@pytest.mark.parametrize(
+    ("domain", "thickness"),
+    [
+        (Polygon([(0, 0), (1, 0), (0.5, np.sqrt(3) / 2)]), 0.8),  # 60-degree corners
+        (Rectangle((0, 0), (2, 1)), 1.0),
+        (Polygon([(0, 0), (2, 0), (2, 2), (1, 2), (1, 1), (0, 1)]), 1.0),  # L-shape, arms 1 wide
+    ],
+)
+def test_thick_regions_are_not_thin_anywhere(domain, thickness: float) -> None:
+    fs = feature_size(domain)
+    _, values = inside_nodes(fs, domain)
+    assert values.min() > 0.95 * thickness
+
+
+def test_disc_and_annulus() -> None:
+    disc = Circle((0, 0), 1)
+    _, values = inside_nodes(feature_size(disc), disc)
+    assert np.all(np.abs(values / 2 - 1) < 0.05)
+    ring = Circle((0, 0), 1) - Circle((0, 0), 0.6)
+    _, values = inside_nodes(feature_size(ring), ring)
+    assert np.all(np.abs(values / 0.4 - 1) < 0.08)
+
+
+def test_spike_and_neck_count() -> None:
+    spike = Polygon([(0, 0), (1, 0), (1, 0.475), (2, 0.49), (2, 0.51), (1, 0.525), (1, 1), (0, 1)])
+    fs = feature_size(spike)
+    width = lambda x: 0.05 - 0.03 * (x - 1)  # noqa: E731
+    xs = np.array([1.2, 1.5, 1.8])
+    assert np.all(np.abs(fs(np.stack([xs, np.full(3, 0.5)], axis=1)) - width(xs)) < 0.01)
+    assert fs(np.array([[0.5, 0.5]]))[0] > 0.9
+    neck = Rectangle((0, 0), (1, 1)) | Rectangle((1, 0.47), (1.5, 0.53)) | Rectangle((1.5, 0), (2.5, 1))
+    fs = feature_size(neck)
+    assert np.all(np.abs(fs(np.array([[1.25, 0.5], [1.25, 0.475], [1.1, 0.52]])) - 0.06) < 0.01)
+    assert fs(np.array([[0.3, 0.5]]))[0] > 0.9
+
+
+def test_sharp_wedge_counts_and_floor_holds() -> None:
+    wedge = Polygon([(0, 0), (1, -0.09), (1, 0.09)])  # about 10 degrees
+    fs = feature_size(wedge, min_size=0.01)
+    x = np.array([0.3, 0.6, 0.9])
+    assert np.all(np.abs(fs(np.stack([x, 0 * x], axis=1)) - 0.18 * x) < 0.01)
+    assert fs.values.min() >= 0.01
+
+
+def test_plain_callable_matches_the_primitive() -> None:
+    d = lambda p: np.maximum(np.abs(p[:, 0] - 1) - 1, np.abs(p[:, 1] - 0.1) - 0.1)  # noqa: E731
+    fs = feature_size(d, bbox=(0, 0, 2, 0.2))
+    q = np.array([[1.0, 0.1], [1.0, 0.0], [1.0, 0.2], [0.5, 0.05]])
+    assert np.all(np.abs(fs(q) - 0.2) < 0.01)
+
+
+def test_feature_size_is_deterministic() -> None:
+    dom = Circle((0, 0), 1) - Circle((0.3, 0), 0.5)
+    assert np.array_equal(feature_size(dom).values, feature_size(dom).values)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"min_size": 0}, "min_size must be positive"),
+        ({"min_size": "1"}, "min_size must be a positive number"),
+        ({"corner_angle": 200}, "below 180"),
+        ({"spacing": -1}, "spacing must be a positive"),
+    ],
+)
+def test_feature_size_bad_options(kwargs: dict, match: str) -> None:
+    with pytest.raises(SizeError, match=match):
+        feature_size(Rectangle((0, 0), (1, 1)), **kwargs)
+
+
+def test_effective_size_is_h_itself_when_nothing_needs_correcting() -> None:
+    case = injmesh.cases.CASES["circle_with_hole"]
+    h = effective_size(case.size, case.geometry)
+    p = np.random.default_rng(0).uniform(-1, 1, (500, 2))
+    p = p[case.geometry.sdf(p) <= 0]
+    assert np.array_equal(h(p), case.size(p))
+
+
+def test_effective_size_in_a_channel() -> None:
+    w = 0.1
+    channel = Rectangle((0, 0), (2, w))
+    h = effective_size(0.2, channel, layers=2)
+    q = np.stack([np.linspace(0.2, 1.8, 50), np.linspace(0, w, 50)], axis=1)
+    assert np.all(h(q) <= w / 2 * 1.08)
+    h3 = effective_size(0.2, channel, layers=3)
+    assert np.all(h3(q) <= w / 3 * 1.08)
+
+
+def test_effective_size_limits_gradation_from_a_neck() -> None:
+    neck = Rectangle((0, 0), (1, 1)) | Rectangle((1, 0.47), (1.5, 0.53)) | Rectangle((1.5, 0), (2.5, 1))
+    h = effective_size(0.2, neck, rate=0.2)
+    field = h.function
+    assert isinstance(field, GriddedSize)
+    p, values = inside_nodes(field, neck)
+    assert values.max() == pytest.approx(0.2)
+    assert values.min() <= 0.031
+    # Moving away from the neck the size grows at most at the rate.
+    a, b = np.array([[1.25, 0.5]]), np.array([[0.6, 0.5]])
+    assert h(b)[0] - h(a)[0] <= 0.2 * 0.65 * 1.05
+
+
+def test_effective_size_only_asks_h_inside() -> None:
+    ring = Circle((0, 0), 1) - Circle((0, 0), 0.5)
+    seen: list[np.ndarray] = []
+
+    def h(p: np.ndarray) -> np.ndarray:
+        seen.append(p.copy())
+        return 0.05 + 0.3 * (np.hypot(p[:, 0], p[:, 1]) - 0.5)
+
+    size = effective_size(h, ring)
+    size(np.array([[0.0, 0.0], [3.0, 3.0], [0.75, 0.0]]))
+    assert ring.sdf(np.concatenate(seen)).max() <= 1e-6 * ring.diameter
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [({"layers": 0}, "layers must be positive"), ({"rate": -1}, "rate must be positive")],
+)
+def test_effective_size_bad_options(kwargs: dict, match: str) -> None:
+    with pytest.raises(SizeError, match=match):
+        effective_size(0.1, Rectangle((0, 0), (1, 1)), **kwargs)
+
+
+def test_thin_channel_meshes_with_layers_across() -> None:
+    """h = 0.25 in a 0.08-wide channel: slivers without the feature size, sound elements with it."""
+    channel = Rectangle((0, 0), (1.5, 0.08))
+    mesh = injmesh.generate(channel, effective_size(0.25, channel))
+    assert mesh.quality().min() > 0.6
+    # At least two elements across: some interior node off the walls.
+    y = mesh.points[:, 1]
+    assert np.any((y > 0.01) & (y < 0.07))
+
+
+def test_feature_size_is_scale_and_translation_invariant() -> None:
+    pts = [(0, 0), (1, 0), (1, 0.475), (2, 0.49), (2, 0.51), (1, 0.525), (1, 1), (0, 1)]
+    base = feature_size(Polygon(pts))
+    q = np.array([[1.2, 0.5], [1.5, 0.5], [0.5, 0.5], [0.02, 0.02]])
+    scaled = feature_size(Polygon(np.asarray(pts) * 1024.0))
+    assert np.allclose(scaled(q * 1024.0), 1024.0 * base(q), rtol=1e-9)
+    # Far from the origin: the thin part is measured the same; in the thick part the medial
+    # axis of the square is one point, seen or not depending on rounding, and the feature size
+    # is only known to be thick (missing a medial-axis node can only raise it).
+    offset = np.array([1e6, -3e5])
+    moved = feature_size(Polygon(np.asarray(pts) + offset))
+    assert np.allclose(moved(q[:2] + offset), base(q[:2]), rtol=1e-4)
+    assert np.all(moved(q[2:] + offset) > 0.95)
+
+
+def test_a_strait_thinner_than_the_grid_refines_it() -> None:
+    """A 0.015-wide strait between two lobes holds no node of the default grid (spacing ~0.02):
+    the facing walls are found on the boundary and the grid is refined to resolve it."""
+    strait = Polygon([(0, 0), (2, 0), (2, 0.9925), (2.3, 0.9925), (2.3, 0), (4.3, 0), (4.3, 2), (2.3, 2),
+                      (2.3, 1.0075), (2, 1.0075), (2, 2), (0, 2)])
+    fs = feature_size(strait)
+    assert fs.spacing[0] <= 0.015 / 2
+    assert fs(np.array([[2.15, 1.0]]))[0] == pytest.approx(0.015, rel=0.1)
+    assert fs(np.array([[1.0, 1.0]]))[0] > 1.9
