@@ -3,4 +3,14 @@
 Each module here is imported lazily, by the stage that needs it, so that ``import injmesh`` stays
 fast and numba is loaded only when a kernel runs.  Every kernel is the single implementation of
 its algorithm (no NumPy twin) and is deterministic: same inputs, bit-identical output.
+
+* :mod:`injmesh.kernels.predicates` -- adaptive-precision exact ``orient2d`` and ``incircle``.
+* :mod:`injmesh.kernels.delaunay` -- incremental Delaunay triangulation with a live adjacency
+  structure (flips, point location, local insertion and removal, edge recovery).
+
+Every kernel is ``@njit(cache=True)``: the first call compiles (tens of seconds for the whole
+Delaunay module on a cold cache) and later processes load the machine code from
+``__pycache__``.  Numba invalidates a cached function only when *its own* source file changes:
+after editing ``predicates.py`` during development, delete ``kernels/__pycache__`` so that
+``delaunay.py``'s kernels are recompiled against the new predicates.
 """
