@@ -229,14 +229,14 @@ class _Relaxation:
                 # neighbour can neither overtake it nor jump across a corner to another curve.
                 gap = np.minimum(np.hypot(*(old - p[bp]).T), np.hypot(*(old - p[bn]).T))
                 ok = np.hypot(*(cand - old).T) < 0.5 * gap
-                # The projection must keep the node on its own piece of boundary: along the
-                # chord of its neighbours, not across a slit or neck narrower than the step
-                # (there the nearest boundary point is on the opposite wall).
-                chord = p[bn] - p[bp]
-                move = cand - old
-                normal = np.abs(chord[:, 0] * move[:, 1] - chord[:, 1] * move[:, 0])
-                along = np.abs(np.einsum("ij,ij->i", chord, move))
-                ok &= normal <= 0.5 * along + 1e-9 * hbar[b] * np.hypot(*chord.T)
+                # The projection must keep the node on its own stretch of boundary, next to the
+                # two segments it had, not across a slit or notch narrower than the step (there
+                # the nearest boundary point is on the opposite wall).
+                # A curved boundary strays from the two segments by about its own sagitta there,
+                # the distance of the node from its neighbours' chord; a straight wall by nothing.
+                stray = np.minimum(_segment_distance(cand, p[bp], old), _segment_distance(cand, old, p[bn]))
+                allow = 2.0 * _segment_distance(old, p[bp], p[bn]) + 0.1 * np.hypot(*(cand - old).T)
+                ok &= stray <= allow + 1e-9 * hbar[b]
                 # Nor may a step close a gap below half of h: at a sharp corner the interior
                 # pushes boundary nodes into the tip, where they would crowd without end.
                 new_gap = np.minimum(np.hypot(*(cand - p[bp]).T), np.hypot(*(cand - p[bn]).T))
@@ -259,6 +259,13 @@ class _Relaxation:
         if not np.array_equal(self.anchor, self.p):
             self.retriangulate()
         return self.tri
+
+
+def _segment_distance(q: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
+    """Distance of each point ``q`` to the segment ``a``-``b`` (row by row)."""
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", q - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0, 1)
+    return np.asarray(np.hypot(*(q - a - t[:, None] * ab).T))
 
 
 def smooth(
@@ -332,7 +339,7 @@ def smooth(
         on_boundary = np.zeros(len(p), dtype=bool)
         on_boundary[wall.ravel()] = True
         on_boundary[slide[:, 0]] = True
-        p = _optimize(domain, p, tri, movable, on_boundary)
+        p = _optimize(domain, p, tri, movable, on_boundary, wall)
     # Drop nodes that no triangle uses (Qhull leaves out coincident points, for example).
     used = np.zeros(len(p), dtype=bool)
     used[tri.ravel()] = True
@@ -518,7 +525,12 @@ def _has_edges(tri: IntArray, walls: IntArray) -> NDArray[np.bool_]:
 
 
 def _optimize(
-    domain: Domain, p: FloatArray, tri: IntArray, movable: NDArray[np.bool_], on_boundary: NDArray[np.bool_]
+    domain: Domain,
+    p: FloatArray,
+    tri: IntArray,
+    movable: NDArray[np.bool_],
+    on_boundary: NDArray[np.bool_],
+    walls: IntArray,
 ) -> FloatArray:
     """Move free nodes of bad triangles where their star's worst quality rises.
 
@@ -533,6 +545,12 @@ def _optimize(
 
     p = p.copy()
     n = len(p)
+    # Boundary neighbours: a boundary node's move must stay next to its own two segments.
+    prev_b = np.arange(n)
+    next_b = np.arange(n)
+    if len(walls):
+        next_b[walls[:, 0]] = walls[:, 1]
+        prev_b[walls[:, 1]] = walls[:, 0]
     a, b = tri[:, [1, 2, 0]], tri[:, [2, 0, 1]]  # the edge opposite each corner, CCW
     corner = tri.ravel()
     for _ in range(OPTIMIZE_SWEEPS):
@@ -573,7 +591,11 @@ def _optimize(
             flipped = np.zeros(n, dtype=bool)
             flipped[tri[signed_areas(trial, tri) <= 0].ravel()] = True
             inside = domain.sdf(step) < 0
-            ok = ~done & (star_new[move] > star[move]) & ~flipped[move] & (inside | on_bnd)
+            pm, pp, pn = p[move], p[prev_b[move]], p[next_b[move]]
+            stray = np.minimum(_segment_distance(step, pp, pm), _segment_distance(step, pm, pn))
+            allow = 2.0 * _segment_distance(pm, pp, pn) + 0.1 * np.hypot(*(step - pm).T)
+            home = ~on_bnd | (stray <= allow * (1 + 1e-9))
+            ok = ~done & (star_new[move] > star[move]) & ~flipped[move] & (inside | on_bnd) & home
             p[move[ok]] = step[ok]
             done |= ok
         if not done.any():
