@@ -378,16 +378,25 @@ def _insert_corners(
         a, b = loop, np.roll(loop, -1, axis=0)
         ab = b - a
         ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
-        q = corners[:, None, :]
-        t = np.clip(np.einsum("cnk,nk->cn", q - a, ab) / ab2, 0, 1)
-        dist = np.hypot(*(q - (a + t[..., None] * ab)).transpose(2, 0, 1))
-        seg = np.argmin(dist, axis=1)
-        rows = np.arange(len(corners))
+        # Nearest segment of each corner, in chunks so that (corners x segments) work arrays
+        # stay near 4 million entries (a 20,000-vertex outline has as many corners).
+        seg = np.empty(len(corners), dtype=np.intp)
+        near_t = np.empty(len(corners))
+        near_d = np.empty(len(corners))
+        step = max(1, 4_000_000 // n)
+        for s0 in range(0, len(corners), step):
+            q = corners[s0 : s0 + step, None, :]
+            t = np.clip(np.einsum("cnk,nk->cn", q - a, ab) / ab2, 0, 1)
+            dist = np.hypot(*(q - (a + t[..., None] * ab)).transpose(2, 0, 1))
+            k = np.argmin(dist, axis=1)
+            rows = np.arange(len(k))
+            seg[s0 : s0 + step], near_t[s0 : s0 + step] = k, t[rows, k]
+            near_d[s0 : s0 + step] = dist[rows, k]
         # A corner belongs to this loop when the traced polyline passes close to it; traced
         # polylines cut corners by up to about a grid cell, hence the loose radius.
-        mine = dist[rows, seg] <= max(on, 2.0 * float(np.sqrt(ab2.max())))
+        mine = near_d <= max(on, 2.0 * float(np.sqrt(ab2.max())))
         if mine.any():
-            seg, tt, c = seg[mine], t[rows, seg][mine], corners[mine]
+            seg, tt, c = seg[mine], near_t[mine], corners[mine]
             # Vertices that coincide with a corner become that corner.
             key = np.concatenate([np.arange(n, dtype=float), seg + np.clip(tt, 1e-9, 1 - 1e-9)])
             allp = np.concatenate([loop, c])
