@@ -39,6 +39,16 @@ def rss_bytes() -> int:
     return rss if rss is not None else peak_rss_bytes()
 
 
+def best_time(fn: Callable[[], Any], repeat: int = 1) -> tuple[float, Any]:
+    """Best wall seconds of ``repeat`` calls, and the last result."""
+    best, out = float("inf"), None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t)
+    return best, out
+
+
 def median_time(fn: Callable[[], Any], calls: int = 5, warmup: int = 1) -> tuple[float, Any]:
     """Median wall seconds of ``calls`` calls after ``warmup`` untimed ones, and the last result."""
     out = None

@@ -32,6 +32,9 @@ from scipy.spatial import Delaunay
 
 from injmesh.kernels.delaunay import InvertedTriangleError, LiveTriangulation, delaunay
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _bench import best_time as timed  # noqa: E402
+
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 
 WARM_UP = """
@@ -39,6 +42,7 @@ import time
 t0 = time.perf_counter()
 import numpy as np
 from injmesh.kernels.delaunay import LiveTriangulation
+
 t1 = time.perf_counter()
 p = np.random.default_rng(0).random((50, 2))
 live = LiveTriangulation(p)
@@ -58,15 +62,6 @@ timings = (t1 - t0, t2 - t1)
 
 def _report_timings() -> str:
     return WARM_UP + "print(*timings)\n"
-
-
-def timed(fn, repeat: int):  # type: ignore[no-untyped-def]
-    best, out = np.inf, None
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t)
-    return best, out
 
 
 def compile_times() -> tuple[tuple[float, float], tuple[float, float]]:

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 import warnings
 from pathlib import Path
 
@@ -30,19 +29,11 @@ import injmesh
 from injmesh.cases import CASES
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _bench import best_time as timed  # noqa: E402
 from _bench import machine_note, median_time  # noqa: E402
 
 TARGET_MS = 20.0  # issue 7: each of the six cases after warm-up
 
-
-def timed(fn, repeat: int):  # type: ignore[no-untyped-def]
-    """Best wall time of ``repeat`` calls and the last result."""
-    best, out = np.inf, None
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t)
-    return best, out
 
 
 def row(label: str, mesh: injmesh.Mesh, seconds: float, paper_q: float | None, target: bool = False) -> str:

@@ -20,8 +20,10 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -31,15 +33,8 @@ from injmesh.cases import CASES
 from injmesh.sizing import GriddedSize, ScatteredSize, effective_size, feature_size, limit_gradation
 from injmesh.sizing.background import make_background
 
-
-def timed(fn, repeat: int = 1):  # type: ignore[no-untyped-def]
-    """Best wall time of ``repeat`` calls and the last result."""
-    best, out = np.inf, None
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t)
-    return best, out
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _bench import best_time as timed  # noqa: E402
 
 
 def raster(h, bbox, spacing: float) -> GriddedSize:  # type: ignore[no-untyped-def]
