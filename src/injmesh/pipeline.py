@@ -406,6 +406,10 @@ NODES_TOLERANCE = 0.03
 #: Node counts of Steps 1 and 2 tried per search, and the largest change of scale per try.
 MAX_PROBES = 8
 MAX_STEP = 4.0
+#: Full meshes made at most (the closest is returned).
+MAX_MESHES = 4
+#: The search stops when the scales giving too many and too few nodes are this close (relative).
+BRACKET = 0.002
 
 
 class _Scaled:
@@ -448,7 +452,9 @@ def _meet_node_count(
     2. Search on the node count of Steps 1 and 2 (boundary and injection, without smoothing,
        a few per cent of a mesh's time): Newton steps in ``log scale`` whose first slope
        ``-(1 + interior share)`` comes from that two-term model and later slopes from the last
-       two counts (a secant), each step at most ``MAX_STEP``, until within ``PROBE_TOLERANCE``.
+       two counts (a secant), each step at most ``MAX_STEP``, until within ``PROBE_TOLERANCE``;
+       once counts above and below the goal are known, a safeguarded secant inside that
+       bracket, stopped when it is ``BRACKET`` wide (the count is a step function of the scale).
        The feature size and gradation corrections are recomputed at every scale, so thin parts
        that do not coarsen with h are counted as they are.
     3. The full mesh.  Smoothing's local repair adds or removes a few nodes (0 to +5 % on a
@@ -473,27 +479,22 @@ def _meet_node_count(
                          wanted, scale, counts[scale])
         return counts[scale]
 
+    def model_slope(scale: float, n: int) -> float:
+        # d log N / d log scale of N = A/scale^2 + B/scale, with A/scale^2 the interior estimate.
+        return -(1.0 + min(max(interior / (scale * scale * n), 0.0), 1.0))
+
     def search(goal: float, scale: float) -> float:
-        best = scale
-        previous: tuple[float, int] | None = None
+        tried: list[tuple[float, int]] = []
         for _ in range(MAX_PROBES):
             n = count(scale)
-            if abs(n - goal) < abs(counts[best] - goal):
-                best = scale
+            tried.append((scale, n))
             if abs(n - goal) <= max(1.0, PROBE_TOLERANCE * goal):
                 break
-            if previous is not None and n != previous[1]:
-                slope = math.log(n / previous[1]) / math.log(scale / previous[0])
-                slope = min(max(slope, -3.0), -0.5)
-            elif previous is not None and n > goal and scale > previous[0]:
-                break  # coarser h, same count: the fewest nodes reachable
-            else:
-                share = min(max(interior / (scale * scale * n), 0.0), 1.0)
-                slope = -(1.0 + share)
-            step = min(max(math.log(goal / n) / slope, -math.log(MAX_STEP)), math.log(MAX_STEP))
-            previous = (scale, n)
-            scale = scale * math.exp(step)
-        return best
+            following = _next_scale(tried, goal, model_slope(scale, n))
+            if following is None:
+                break
+            scale = following
+        return min(tried, key=lambda t: abs(t[1] - goal))[0]
 
     def mesh_at(scale: float) -> tuple[Mesh, list[warnings.WarningMessage]]:
         with warnings.catch_warnings(record=True) as caught:
@@ -508,23 +509,26 @@ def _meet_node_count(
         return abs(mesh.n_points / wanted - 1.0)
 
     scale = search(wanted, math.sqrt(interior / wanted))
-    tried = [(scale, *mesh_at(scale))]
-    if miss(tried[0][1]) > MESH_TOLERANCE:
-        # Retarget Steps 1-2 by what smoothing added or removed.
-        first = tried[0][1]
-        again = search(wanted * first.stats.initial_nodes / first.n_points, scale)
-        if again != scale:
-            tried.append((again, *mesh_at(again)))
-    if len(tried) == 2 and min(miss(m) for _, m, _ in tried) > MESH_TOLERANCE:
-        # What smoothing adds varies from scale to scale (0-10 nodes of 200): a secant on the
-        # two meshes' own counts.
-        (s1, m1, _), (s2, m2, _) = tried
-        if m1.n_points != m2.n_points:
-            slope = math.log(m2.n_points / m1.n_points) / math.log(s2 / s1)
-            slope = min(max(slope, -3.0), -0.5)
-            third = s2 * math.exp(math.log(wanted / m2.n_points) / slope)
-            tried.append((third, *mesh_at(third)))
-    scale, mesh, caught = min(tried, key=lambda t: abs(t[1].n_points - wanted))
+    meshes = {scale: mesh_at(scale)}
+    # Smoothing's repair adds a few nodes, a number that varies with the scale: if the mesh
+    # misses, the same search on the meshes' own counts, its first step retargeted by the ratio
+    # smoothing changed the count by (the slope of Steps 1-2's counts).
+    while len(meshes) < MAX_MESHES:
+        scale, (mesh, _) = min(meshes.items(), key=lambda t: abs(t[1][0].n_points - wanted))
+        if miss(mesh) <= MESH_TOLERANCE:
+            break
+        finals = [(s, m.n_points) for s, (m, _) in meshes.items()]
+        ratio = mesh.n_points / mesh.stats.initial_nodes
+        following = _next_scale(finals, wanted, _local_slope(counts, scale, model_slope(
+            scale, mesh.stats.initial_nodes)))
+        if following is None or following in meshes:
+            break
+        if len(meshes) == 1:
+            following = search(wanted / ratio, following)
+            if following in meshes:
+                break
+        meshes[following] = mesh_at(following)
+    scale, (mesh, caught) = min(meshes.items(), key=lambda t: abs(t[1][0].n_points - wanted))
     searching = time.perf_counter() - start - sum(mesh.stats.seconds.values())
     logger.info("target_nodes=%d: h scaled by %.6g, %d nodes (%+.2f %%); %d counts of Steps 1-2",
                 wanted, scale, mesh.n_points, 100.0 * (mesh.n_points / wanted - 1.0), len(counts))
@@ -532,12 +536,57 @@ def _meet_node_count(
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     off = mesh.n_points / wanted - 1.0
     if abs(off) > NODES_TOLERANCE:
-        why = ("about the fewest this domain allows: thin parts keep h <= feature size / "
-               "feature_layers (feature_layers=None lifts that) and every boundary loop needs "
-               "a few segments" if off > 0 else "the closest the search found")
+        if off > 0 and min(counts.values()) > wanted:
+            why = ("about the fewest this domain allows: thin parts keep h <= feature size / "
+                   "feature_layers (feature_layers=None lifts that) and every boundary loop "
+                   "needs a few segments")
+        else:
+            why = (f"the closest of {len(meshes)} meshes: with this h the count jumps by more "
+                   "than that between nearby scales")
         warnings.warn(
             f"target_nodes={wanted}: the mesh has {mesh.n_points} nodes ({100 * off:+.1f} %), "
             f"{why}", ConvergenceWarning, stacklevel=3,
         )
     seconds = {**mesh.stats.seconds, "target_nodes": max(searching, 0.0)}
     return replace(mesh, stats=replace(mesh.stats, seconds=seconds))
+
+
+def _local_slope(counts: dict[float, int], scale: float, default: float) -> float:
+    """``d log N / d log scale`` near ``scale`` from the two counts nearest it, else ``default``."""
+    near = sorted(counts, key=lambda s: abs(math.log(s / scale)))[:3]
+    for other in near:
+        if other != scale and scale in counts and counts[other] != counts[scale]:
+            slope = math.log(counts[other] / counts[scale]) / math.log(other / scale)
+            return min(max(slope, -3.0), -0.5)
+    return default
+
+
+def _next_scale(tried: list[tuple[float, int]], goal: float, slope: float) -> float | None:
+    """The next scale of h to try for ``goal`` nodes, given the (scale, count) pairs so far.
+
+    Before the goal is bracketed: a Newton step in log-log from the last pair, with the slope
+    of the last two pairs (else ``slope``), at most ``MAX_STEP``.  Once scales giving too many
+    and too few nodes are known: a secant between the closest two, kept inside the bracket.
+    None when there is nothing better to try: the bracket is narrower than ``BRACKET`` (the
+    count is a step function of the scale), or counts no longer fall as the scale grows (the
+    fewest nodes the domain allows).
+    """
+    known = dict(tried)
+    above = [s for s, n in tried if n > goal]
+    below = [s for s, n in tried if n < goal]
+    if above and below:
+        fine, coarse = max(above), min(below)
+        if fine >= coarse or coarse / fine < 1.0 + BRACKET:
+            return None  # not monotone here, or as close as the steps of the count allow
+        n_fine, n_coarse = known[fine], known[coarse]
+        t = math.log(n_fine / goal) / math.log(n_fine / n_coarse)
+        return fine * (coarse / fine) ** min(max(t, 0.1), 0.9)
+    scale, n = tried[-1]
+    if len(tried) > 1:
+        s0, n0 = tried[-2]
+        if n != n0 and scale != s0:
+            slope = min(max(math.log(n / n0) / math.log(scale / s0), -3.0), -0.5)
+        elif n > goal and scale > s0:
+            return None  # coarser h, same count: the fewest nodes reachable
+    step = math.log(goal / n) / slope
+    return scale * math.exp(min(max(step, -math.log(MAX_STEP)), math.log(MAX_STEP)))
