@@ -59,7 +59,7 @@ def main(out: Path) -> dict[str, float]:
     left.set_title(f"h as given: q_min {figures['q_min before']:.3f}")
     plot_mesh(after, ax=right, vmin=0, vmax=1)
     right.set_title(f"limit_gradation(rate=0.2): q_min {figures['q_min after']:.3f}")
-    fig.savefig(out / "gradation.png", dpi=120)
+    fig.savefig(out / "gradation.png", dpi=80)
     print(f"wrote {out / 'gradation.png'}")
     return figures
 

@@ -69,7 +69,7 @@ def main(out: Path) -> dict[str, float]:
     left.set_title(f"raster {raster.values.shape[1]} x {raster.values.shape[0]}")
     plot_mesh(mesh, ax=right)
     right.set_title(f"{mesh.n_points} nodes, q_min {figures['q_min']:.3f}")
-    fig.savefig(out / "size_from_raster.png", dpi=120)
+    fig.savefig(out / "size_from_raster.png", dpi=80)
     print(f"wrote {out / 'size_from_raster.png'}")
     return figures
 

@@ -61,7 +61,7 @@ def main(out: Path) -> dict[str, float]:
                       edgecolors="k", linewidths=0.4)
     fig.colorbar(dots, ax=ax, label="sampled h")
     ax.set_title(f"{len(points)} samples -> {mesh.n_points} nodes, q_min {figures['q_min']:.3f}")
-    fig.savefig(out / "size_scattered.png", dpi=120)
+    fig.savefig(out / "size_scattered.png", dpi=80)
     print(f"wrote {out / 'size_scattered.png'}")
     return figures
 

@@ -47,7 +47,7 @@ def main(out: Path, targets: tuple[int, ...] = TARGETS) -> list[tuple[int, int]]
     for ax, n, mesh in zip(np.atleast_1d(fig.subplots(1, len(targets))), targets, meshes, strict=True):
         plot_mesh(mesh, ax=ax, color=None, linewidth=0.3)
         ax.set_title(f"target_nodes={n}: {mesh.n_points} nodes")
-    fig.savefig(out / "target_nodes.png", dpi=120)
+    fig.savefig(out / "target_nodes.png", dpi=80)
     print(f"wrote {out / 'target_nodes.png'}")
     return [(n, mesh.n_points) for n, mesh in zip(targets, meshes, strict=True)]
 

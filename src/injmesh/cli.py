@@ -12,6 +12,8 @@ Shell usage::
     injmesh generate shape.geojson --size 0.05 -o shape.vtu
     injmesh generate shape.wkt --size "0.02 + 0.1*hypot(x, y)" -o shape.msh
     injmesh generate shape.poly --size-min 0.02 --growth 0.3 --size-max 0.2 -o shape.xdmf
+    injmesh generate shape.geojson --size depth.npz -o shape.msh   # a raster (x, y, values)
+    injmesh generate shape.wkt --nodes 5000 --gradation 0.3 --feature-layers 3 -o shape.msh
     injmesh quality shape.msh --size 0.05
     injmesh plot shape.msh -o shape.png --color size-error --size 0.05
     injmesh paper --out paper-results --quick

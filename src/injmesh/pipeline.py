@@ -157,7 +157,7 @@ def generate(
 
         def at_scale(scale: float, full: bool) -> Mesh | int:
             # Full mesh, or only the node count of Steps 1 and 2, with h scaled by ``scale``.
-            scaled = _Scaled(h, scale)
+            scaled: SizeLike = scale * h.constant if h.constant is not None else _Scaled(h, scale)
             if not full:
                 return len(initial_nodes(domain, scaled, bbox=bbox, fixed_points=fixed_points,
                                          max_nodes=max_nodes, feature_layers=feature_layers,
