@@ -86,3 +86,21 @@ def test_target_nodes_above_the_budget_is_refused_before_any_work() -> None:
 def test_target_nodes_is_for_injection_only() -> None:
     with pytest.raises(ValueError, match="method='injection' only"):
         injmesh.generate(Circle((0, 0), 1), 1.0, target_nodes=100, method="distmesh")
+
+
+def test_a_count_just_under_the_budget_is_met() -> None:
+    # The stages' budget checks are estimates (this h "implies" about 554 nodes at the final
+    # scale); target_nodes itself is what is checked against max_nodes.
+    square = Rectangle((0, 0), (1, 1))
+    mesh = injmesh.generate(square, "0.01 + 0.1*x", target_nodes=500, max_nodes=520)
+    assert abs(mesh.n_points / 500 - 1) <= 0.03
+
+
+def test_fixed_points_and_a_plain_sdf() -> None:
+    def disc(p: np.ndarray) -> np.ndarray:
+        return np.hypot(p[:, 0], p[:, 1]) - 1
+
+    mesh = injmesh.generate(disc, 1.0, bbox=(-1, -1, 1, 1), fixed_points=[(0.3, 0.2)],
+                            target_nodes=300)
+    assert abs(mesh.n_points / 300 - 1) <= 0.03
+    assert np.any(np.all(mesh.points == [0.3, 0.2], axis=1))

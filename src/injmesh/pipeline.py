@@ -82,7 +82,9 @@ def generate(
         Cap on smoothing iterations (default 1000 for injection, 10000 for DistMesh).  Reaching it
         emits a :class:`ConvergenceWarning` and returns a mesh with ``converged=False``.
     max_nodes : int
-        Refuse (:class:`NodeBudgetError`) a mesh that would need more nodes than this.
+        Refuse (:class:`NodeBudgetError`) a mesh that would need more nodes than this.  With
+        ``target_nodes`` it is ``target_nodes`` that is checked against it (the stages' own
+        checks are estimates, and the search may try a finer scale on its way).
     smoothing : {"hybrid", "attractive"}
         Injection only.  ``"hybrid"``: the paper's attractive force (Eq. 3.4) to relax the
         injected nodes, then a spring with rest length h to convergence, then local repair of
@@ -154,21 +156,22 @@ def generate(
         if method != "injection":
             raise ValueError("target_nodes applies to method='injection' only")
         wanted = _check_target_nodes(target_nodes, int(max_nodes))
+        budget = max(int(max_nodes), 2 * wanted)
 
         def at_scale(scale: float, full: bool) -> Mesh | int:
             # Full mesh, or only the node count of Steps 1 and 2, with h scaled by ``scale``.
             scaled: SizeLike = scale * h.constant if h.constant is not None else _Scaled(h, scale)
             if not full:
                 return len(initial_nodes(domain, scaled, bbox=bbox, fixed_points=fixed_points,
-                                         max_nodes=max_nodes, feature_layers=feature_layers,
+                                         max_nodes=budget, feature_layers=feature_layers,
                                          gradation=gradation))
             return generate(domain, scaled, bbox=bbox, fixed_points=fixed_points,
-                            max_iterations=max_iterations, max_nodes=max_nodes, smoothing=smoothing,
+                            max_iterations=max_iterations, max_nodes=budget, smoothing=smoothing,
                             feature_layers=feature_layers, gradation=gradation, strict=strict,
                             callback=callback)
 
         return _meet_node_count(as_domain(domain, bbox=bbox, fixed_points=fixed_points), h,
-                                wanted, at_scale, int(max_nodes))
+                                wanted, at_scale, budget)
 
     if method == "distmesh":
         from .distmesh import distmesh
