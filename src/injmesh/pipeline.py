@@ -402,7 +402,7 @@ def _target_size(
 
 #: ``target_nodes``: a count of Steps 1 and 2 this close (fraction, or one node) ends the search.
 PROBE_TOLERANCE = 0.005
-#: The full mesh is accepted this close; farther, it is made once more, retargeted.
+#: The full mesh is accepted this close; farther, it is made again (up to ``MAX_MESHES``).
 MESH_TOLERANCE = 0.01
 #: Farther than this from ``target_nodes``: ConvergenceWarning.
 NODES_TOLERANCE = 0.03
@@ -460,11 +460,12 @@ def _meet_node_count(
        bracket, stopped when it is ``BRACKET`` wide (the count is a step function of the scale).
        The feature size and gradation corrections are recomputed at every scale, so thin parts
        that do not coarsen with h are counted as they are.
-    3. The full mesh.  Smoothing's local repair adds or removes a few nodes (0 to +5 % on a
-       100-node disc, varying with the scale; < 1 % from 1000 nodes); if the mesh misses by
-       more than ``MESH_TOLERANCE``, the search is repeated for ``wanted`` times the ratio it
-       missed by and the mesh made again; if that misses too, a third mesh at the scale a
-       secant through the two meshes' own counts gives.  The closest is returned.
+    3. The full mesh.  Smoothing's local repair adds or removes a few nodes (0 to +10 % at a
+       few hundred nodes, varying with the scale; < 1 % from a few thousand); if the mesh
+       misses by more than ``MESH_TOLERANCE``, the search of step 2 is repeated for
+       ``wanted`` divided by the ratio smoothing changed the count by, and the mesh made
+       again; further meshes (``MAX_MESHES`` in all) follow the same Newton / bracketed secant
+       steps on the meshes' own counts.  The closest is returned.
 
     Deterministic: every count and scale follows from the inputs alone.
     """
