@@ -71,7 +71,7 @@ from ._arrays import lower_wins
 from .geometry import Domain
 from .progress import Callback, report
 from .quality import triangle_quality, unique_edges
-from .triangulation import constrained_triangles, delaunay, flip_to_delaunay, inside_triangles
+from .triangulation import constrained_triangles, delaunay, inside_triangles
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -88,6 +88,14 @@ DT = 0.2
 RETRIANGULATE = 0.1
 #: Converged when no node moves more than this fraction of its hbar in a step.
 DPTOL = 1e-3
+#: A step is clamped to this fraction of the node's hbar.  Measured on the paper's cases and
+#: the unit square it never binds after the first steps; it bounds how far a node can go
+#: between two connectivity updates (see DEEP).
+STEP_CAP = 0.5
+#: Free nodes deeper inside than DEEP * hbar (from d at the last connectivity update) skip
+#: the inside test of each step: they drift less than (RETRIANGULATE + STEP_CAP) * hbar before
+#: the next update, and DEEP leaves a factor 2 for signed distances that are not exact.
+DEEP = 2.0 * (RETRIANGULATE + STEP_CAP)
 #: Default iteration cap (all phases together).
 MAX_ITERATIONS = 1000
 #: Triangles below this quality are repaired; at most REPAIR_ROUNDS rounds.
@@ -134,7 +142,11 @@ def triangulate(domain: Domain, p: FloatArray, walls: IntArray | None = None) ->
 
 
 class _Relaxation:
-    """Euler steps of the truss model for one set of nodes."""
+    """Euler steps of the truss model for one set of nodes.
+
+    ``active`` (optional, a boolean mask over the nodes) restricts the moving nodes to a subset:
+    the repair relaxes only the rings around the nodes it changed.
+    """
 
     def __init__(
         self,
@@ -146,7 +158,12 @@ class _Relaxation:
         walls: IntArray,
         callback: Callback | None,
         cap: int,
+        active: NDArray[np.bool_] | None = None,
+        tri: IntArray | None = None,
     ) -> None:
+        from .kernels import smooth as kernels
+
+        self._k = kernels
         self.domain, self.h, self.p = domain, h, p
         self.n_fixed, self.slide, self.walls = n_fixed, slide, walls
         self.callback, self.cap = callback, cap
@@ -155,103 +172,120 @@ class _Relaxation:
         #: Where the largest move of the last step was: where a run that stops at its cap is
         #: still moving.
         self.unsettled: tuple[float, float] | None = None
-        self.tri = triangulate(domain, p, walls)
+        n = len(p)
+        free = np.arange(n_fixed, n)
+        moving_slide = slide
+        if active is not None:
+            free = free[active[n_fixed:]]
+            moving_slide = slide[active[slide[:, 0]]]
+        self._free = free.astype(np.intp)
+        self._sl = moving_slide
+        self._moving = np.concatenate([self._free, moving_slide[:, 0]]).astype(np.intp)
+        self._total = np.zeros((n, 2))
+        self._cand = np.empty((len(self._free), 2))
+        self._near = np.empty(len(self._free), dtype=np.intp)
+        self._set_triangles(triangulate(domain, p, walls) if tri is None else tri)
+
+    def _set_triangles(self, tri: IntArray) -> None:
+        """Take a new triangulation (from scratch): its neighbour table for the flips."""
+        from .triangulation import neighbours
+
+        t32 = np.ascontiguousarray(tri, dtype=np.int32)
+        self._t32 = t32
+        self._nbr = np.ascontiguousarray(neighbours(tri), dtype=np.int32)
+        self._con = np.zeros(t32.shape, dtype=np.uint8)
+        self._vt = np.full(len(self.p), -1, dtype=np.int32)
+        self._vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
         self._connect()
 
     def _connect(self) -> None:
-        self.bars = unique_edges(self.tri)
-        self.anchor = self.p.copy()
+        """Everything that stays fixed until the next change of connectivity.
+
+        The bars and their desired lengths ``ld = h(midpoint)``: between two re-triangulations
+        no node moves more than ``RETRIANGULATE * hbar`` (plus one step), so h at the
+        midpoints changes by a small fraction of its own variation over one edge, and is
+        evaluated once here instead of at every step.  The free nodes deeper than
+        ``DEEP * hbar`` inside cannot leave the domain before the next call (see ``DEEP``), so
+        only the others are tested with ``domain.sdf`` at each step.
+        """
+        k, p = self._k, self.p
+        self.tri = self._t32.astype(np.intp)
+        indptr, adj, eid, bars = k.adjacency(len(p), self._t32)
+        ld = np.ascontiguousarray(self.h(0.5 * (p[bars[:, 0]] + p[bars[:, 1]])), dtype=np.float64)
+        hbar = k.mean_bar_size(indptr, eid, ld)
+        # A node in no triangle (Qhull drops coincident points) feels no force; its own h
+        # keeps the relative measures finite.
+        lonely = np.flatnonzero(indptr[1:] == indptr[:-1])
+        if len(lonely):
+            hbar[lonely] = self.h(p[lonely])
+        self._csr = (indptr, adj, eid, ld)
+        self.hbar = hbar
+        if len(self._sl):
+            b, bp, bn = self._sl.T
+            self._ld_slide = (self.h(0.5 * (p[b] + p[bp])), self.h(0.5 * (p[b] + p[bn])))
+        deep = np.zeros(len(p), dtype=np.bool_)
+        if len(self._free):
+            deep[self._free] = self.domain.sdf(p[self._free]) < -DEEP * hbar[self._free]
+        self._deep = deep
+        self.anchor = p.copy()
         self.retriangulations += 1
 
     def retriangulate(self) -> None:
-        # Nodes moved a little since the last triangulation: flips restore Delaunay far more
-        # cheaply than Qhull; an inverted triangle sends us back to Qhull.
-        tri = flip_to_delaunay(self.p, self.tri)
-        self.tri = triangulate(self.domain, self.p, self.walls) if tri is None else tri
-        self._connect()
+        # Nodes moved a little since the last triangulation: Lawson flips (exact predicates,
+        # on the triangles kept, so the mesh keeps its boundary edges) restore Delaunay far
+        # more cheaply than a new triangulation; an inverted triangle sends us back to one.
+        res = self._k_flip(self.p, self._t32, self._nbr, self._con, self._vt)
+        if res < 0:
+            self._set_triangles(triangulate(self.domain, self.p, self.walls))
+        else:
+            self._connect()
 
-    def _spring(self, u: IntArray, v: IntArray) -> FloatArray:
-        """Spring force of bars (u, v) on u, rest length h."""
-        vec = self.p[u] - self.p[v]
-        lc = np.maximum(np.hypot(*vec.T), 1e-300)
-        ld = self.h(0.5 * (self.p[u] + self.p[v]))
-        return ((ld - lc) / (ld * lc))[:, None] * vec
+    @staticmethod
+    def _k_flip(p: FloatArray, tri: IntArray, nbr: IntArray, con: NDArray[np.uint8], vt: IntArray) -> int:
+        from .kernels.delaunay import flip_to_delaunay as flip_kernel
+
+        return int(flip_kernel(p, tri, nbr, con, vt))
 
     def run(self, force: Literal["attractive", "spring"], steps: int) -> bool:
         """Up to ``steps`` Euler steps; True when the convergence test was met."""
-        p, n = self.p, len(self.p)
-        free = np.arange(self.n_fixed, n)
+        p, n, k = self.p, len(self.p), self._k
+        attraction = ATTRACTION if force == "attractive" else 0.0  # Eq. 3.4: f / lc = -0.2 / ld
         for _ in range(steps):
             if self.iterations >= self.cap:
                 return False
             self.iterations += 1
-            i, j = self.bars[:, 0], self.bars[:, 1]
-            vec = p[i] - p[j]
-            ld = self.h(0.5 * (p[i] + p[j]))
-            if force == "attractive":
-                coef = -ATTRACTION / ld  # Eq. 3.4: f / lc = -0.2 / ld
-            else:
-                lc = np.maximum(np.hypot(*vec.T), 1e-300)
-                coef = (ld - lc) / (ld * lc)
-            fvec = coef[:, None] * vec
-            total = np.stack(
-                [
-                    np.bincount(i, fvec[:, 0], n) - np.bincount(j, fvec[:, 0], n),
-                    np.bincount(i, fvec[:, 1], n) - np.bincount(j, fvec[:, 1], n),
-                ],
-                axis=1,
-            )
-            deg = np.bincount(i, minlength=n) + np.bincount(j, minlength=n)
-            hbar = (np.bincount(i, ld, n) + np.bincount(j, ld, n)) / np.maximum(deg, 1)
-            # A node in no triangle (Qhull drops coincident points) feels no force; its own h
-            # keeps the relative measures finite.
-            lonely = deg == 0
-            if lonely.any():
-                hbar[lonely] = self.h(p[lonely])
-            step = DT * hbar[free, None] * total[free]
-            new = p[free] + step
-            escaped = self.domain.sdf(new) > 0
-            new[escaped] = p[free][escaped]
-            p[free] = new
-            moved = np.zeros(n)
-            moved[free[~escaped]] = np.hypot(*(step[~escaped]).T) / hbar[free][~escaped]
-            if len(self.slide):
-                b, bp, bn = self.slide.T
-                old = p[b]
-                # Half the node's total force, half its two boundary bars (a 1-D spring along
-                # the boundary, as in balancing): all of the former lets the interior squeeze
-                # boundary edges to 0.7 h; only the latter leaves bad triangles at the boundary.
-                k = len(b)
-                along = self._spring(np.concatenate([b, b]), np.concatenate([bp, bn]))
-                fb = 0.5 * (total[b] + along[:k] + along[k:])
-                cand = self.domain.project(old + DT * hbar[b, None] * fb)
-                # Barriers as in Algorithm 3: a step shorter than half the gap to either
-                # neighbour can neither overtake it nor jump across a corner to another curve.
-                gap = np.minimum(np.hypot(*(old - p[bp]).T), np.hypot(*(old - p[bn]).T))
-                ok = np.hypot(*(cand - old).T) < 0.5 * gap
-                # The projection must keep the node on its own stretch of boundary, next to the
-                # two segments it had, not across a slit or notch narrower than the step (there
-                # the nearest boundary point is on the opposite wall).
-                # A curved boundary strays from the two segments by about its own sagitta there,
-                # the distance of the node from its neighbours' chord; a straight wall by nothing.
-                stray = np.minimum(_segment_distance(cand, p[bp], old), _segment_distance(cand, old, p[bn]))
-                allow = 2.0 * _segment_distance(old, p[bp], p[bn]) + 0.1 * np.hypot(*(cand - old).T)
-                ok &= stray <= allow + 1e-9 * hbar[b]
-                # Nor may a step close a gap below half of h: at a sharp corner the interior
-                # pushes boundary nodes into the tip, where they would crowd without end.
-                new_gap = np.minimum(np.hypot(*(cand - p[bp]).T), np.hypot(*(cand - p[bn]).T))
-                ok &= new_gap >= np.minimum(gap, 0.5 * hbar[b])
-                p[b[ok]] = cand[ok]
-                moved[b] = np.hypot(*(p[b] - old).T) / hbar[b]
-            at = int(np.argmax(moved))
-            worst = float(moved[at])
+            indptr, adj, eid, ld = self._csr
+            k.bar_forces(p, self._moving, indptr, adj, eid, ld, attraction, self._total)
+            c, worst, at, drift = k.advance(p, self._free, self._total, self.hbar, DT, STEP_CAP,
+                                            self._deep, self.anchor, self._cand, self._near)
+            if c:
+                # Nodes near the boundary: a step that would leave the domain is not taken.
+                idx, new = self._near[:c], self._cand[:c]
+                ok = ~(self.domain.sdf(new) > 0)
+                idx, new = idx[ok], new[ok]
+                if len(idx):
+                    hb = self.hbar[idx]
+                    mv = np.hypot(*(new - p[idx]).T) / hb
+                    p[idx] = new
+                    drift = max(drift, float(np.max(np.hypot(*(new - self.anchor[idx]).T) / hb)))
+                    a = int(np.argmax(mv))
+                    if mv[a] > worst:
+                        worst, at = float(mv[a]), int(idx[a])
+            if len(self._sl):
+                b = self._sl[:, 0]
+                mv = _slide(p, self._sl, self._total, self.hbar, self._ld_slide, self.domain.project)
+                a = int(np.argmax(mv))
+                if mv[a] > worst:
+                    worst, at = float(mv[a]), int(b[a])
+                drift = max(drift, float(np.max(np.hypot(*(p[b] - self.anchor[b]).T) / self.hbar[b])))
+            worst = max(worst, 0.0)
+            at = max(at, 0)
             self.unsettled = (float(p[at, 0]), float(p[at, 1]))
             report(self.callback, "smoothing", self.iterations, self.cap, nodes=n, max_move=worst,
                    force=force)
             if worst < DPTOL:
                 return True
-            drift = np.hypot(*(p - self.anchor).T) / hbar
-            if drift.max() > RETRIANGULATE:
+            if drift > RETRIANGULATE:
                 self.retriangulate()
         return False
 
@@ -259,6 +293,57 @@ class _Relaxation:
         if not np.array_equal(self.anchor, self.p):
             self.retriangulate()
         return self.tri
+
+
+def _slide(
+    p: FloatArray,
+    slide: IntArray,
+    total: FloatArray,
+    hbar: FloatArray,
+    ld: tuple[FloatArray, FloatArray],
+    project: Callable[[FloatArray], FloatArray],
+) -> FloatArray:
+    """Move the sliding boundary nodes (rows ``(node, previous, next)`` of ``slide``) in place.
+
+    Each takes its Euler step, is put back on the boundary by ``project`` (Eq. 3.2) and keeps
+    the result only where the barriers allow it.  ``total`` holds the bar forces on the nodes,
+    ``ld`` the desired lengths of the bars to the previous and next boundary neighbours.
+    Returns each node's move over its hbar.
+    """
+    b, bp, bn = slide.T
+    old = p[b]
+    hb = hbar[b]
+    # Half the node's total force, half its two boundary bars (a 1-D spring along the boundary,
+    # as in balancing): all of the former lets the interior squeeze boundary edges to 0.7 h;
+    # only the latter leaves bad triangles at the boundary.
+    fb = 0.5 * (total[b] + _spring(old, p[bp], ld[0]) + _spring(old, p[bn], ld[1]))
+    cand = project(old + DT * hb[:, None] * fb)
+    # Barriers as in Algorithm 3: a step shorter than half the gap to either neighbour can
+    # neither overtake it nor jump across a corner to another curve.
+    gap = np.minimum(np.hypot(*(old - p[bp]).T), np.hypot(*(old - p[bn]).T))
+    step = np.hypot(*(cand - old).T)
+    ok = step < 0.5 * gap
+    # The projection must keep the node on its own stretch of boundary, next to the two
+    # segments it had, not across a slit or notch narrower than the step (there the nearest
+    # boundary point is on the opposite wall).  A curved boundary strays from the two segments
+    # by about its own sagitta there, the distance of the node from its neighbours' chord; a
+    # straight wall by nothing.
+    stray = np.minimum(_segment_distance(cand, p[bp], old), _segment_distance(cand, old, p[bn]))
+    allow = 2.0 * _segment_distance(old, p[bp], p[bn]) + 0.1 * step
+    ok &= stray <= allow + 1e-9 * hb
+    # Nor may a step close a gap below half of h: at a sharp corner the interior pushes
+    # boundary nodes into the tip, where they would crowd without end.
+    new_gap = np.minimum(np.hypot(*(cand - p[bp]).T), np.hypot(*(cand - p[bn]).T))
+    ok &= new_gap >= np.minimum(gap, 0.5 * hb)
+    p[b[ok]] = cand[ok]
+    return np.where(ok, step, 0.0) / hb
+
+
+def _spring(u: FloatArray, v: FloatArray, ld: FloatArray) -> FloatArray:
+    """Spring force of bars u-v on u, rest length ``ld``."""
+    vec = u - v
+    lc = np.maximum(np.hypot(*vec.T), 1e-300)
+    return ((ld - lc) / (ld * lc))[:, None] * vec
 
 
 def _segment_distance(q: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
