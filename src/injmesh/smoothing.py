@@ -71,7 +71,7 @@ from ._arrays import lower_wins
 from .geometry import Domain
 from .progress import Callback, report
 from .quality import triangle_quality, unique_edges
-from .triangulation import constrained_triangles, delaunay, inside_triangles
+from .triangulation import constrained_triangles, delaunay, inside_triangles, neighbours
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -100,9 +100,11 @@ DEEP = 2.0 * (RETRIANGULATE + STEP_CAP)
 MAX_ITERATIONS = 1000
 #: Triangles below this quality are repaired; at most REPAIR_ROUNDS rounds.
 REPAIR_Q = 0.85
-REPAIR_ROUNDS = 6
+REPAIR_ROUNDS = 10
 #: Spring steps after each repair round: the change is local and settles quickly.
 REPAIR_STEPS = 40
+#: Repair relaxes only the nodes within this many edges of the nodes it changed.
+REPAIR_RING = 3
 #: Rounds of boundary-segment recovery at the end: pushing free nodes out of the segments'
 #: diametral circles, then splitting the segments still missing.
 CONFORM_ROUNDS = 5
@@ -188,8 +190,6 @@ class _Relaxation:
 
     def _set_triangles(self, tri: IntArray) -> None:
         """Take a new triangulation (from scratch): its neighbour table for the flips."""
-        from .triangulation import neighbours
-
         t32 = np.ascontiguousarray(tri, dtype=np.int32)
         self._t32 = t32
         self._nbr = np.ascontiguousarray(neighbours(tri), dtype=np.int32)
@@ -469,11 +469,21 @@ def _repair(
         p[mid[:, 0]] = 0.5 * (p[mid[:, 0]] + p[mid[:, 1]])
         alive[collapse[:, 1]] = False
         new = 0.5 * (p[split[:, 0]] + p[split[:, 1]])
+        index = np.cumsum(alive) - 1
         p = np.concatenate([p[alive], new])
         cur_kept = np.concatenate([cur_kept[alive], np.full(len(new), -1)])
+        # Only the nodes near the change move: the k-ring of the nodes the operations touched
+        # (in the new numbering; the dropped node's neighbours are the keeper's now).
+        touched = np.concatenate([index[collapse[:, 0]], index[split.ravel()],
+                                  alive.sum() + np.arange(len(new))])
+        tri = triangulate(relax.domain, p, relax.walls)
+        from .kernels.smooth import adjacency, rings
+
+        indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32))
+        active = rings(indptr, adj, touched.astype(np.int64), REPAIR_RING)
         # Fixed and sliding nodes come first and are never removed, so their indices hold.
         state = _Relaxation(relax.domain, relax.h, p, relax.n_fixed, relax.slide, relax.walls,
-                            relax.callback, relax.cap)
+                            relax.callback, relax.cap, active=active, tri=tri)
         state.iterations = iterations
         state.run("spring", REPAIR_STEPS)
         p, tri = state.p, state.tri

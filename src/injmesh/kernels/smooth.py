@@ -178,3 +178,31 @@ def advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near):  # ty
             near[c] = i
             c += 1
     return c, worst, at, drift
+
+
+@njit(cache=True)
+def rings(indptr, adj, seeds, k):  # type: ignore[no-untyped-def]
+    """Mask of the nodes within ``k`` edges of ``seeds`` (breadth-first over the CSR rows)."""
+    n = indptr.shape[0] - 1
+    mask = np.zeros(n, dtype=np.bool_)
+    front = np.empty(n, dtype=np.int64)
+    nf = 0
+    for s in seeds:
+        if 0 <= s < n and not mask[s]:
+            mask[s] = True
+            front[nf] = s
+            nf += 1
+    nxt = np.empty(n, dtype=np.int64)
+    for _ in range(k):
+        nn = 0
+        for a in range(nf):
+            v = front[a]
+            for e in range(indptr[v], indptr[v + 1]):
+                u = adj[e]
+                if not mask[u]:
+                    mask[u] = True
+                    nxt[nn] = u
+                    nn += 1
+        front, nxt = nxt, front
+        nf = nn
+    return mask
