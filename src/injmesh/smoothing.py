@@ -263,7 +263,8 @@ class _Relaxation:
             self._connect()
 
     @staticmethod
-    def _k_flip(p: FloatArray, tri: Int32Array, nbr: Int32Array, con: NDArray[np.uint8], vt: Int32Array) -> int:
+    def _k_flip(p: FloatArray, tri: Int32Array, nbr: Int32Array, con: NDArray[np.uint8],
+                vt: Int32Array) -> int:
         from .kernels.delaunay import flip_to_delaunay as flip_kernel
 
         return int(flip_kernel(p, tri, nbr, con, vt))
