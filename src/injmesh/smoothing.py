@@ -468,16 +468,14 @@ def _repair(
     and triangulations spent.  A round that does not raise q_min is still the start of the
     next: measured on the paper's cases, later rounds often recover.  A round is scored on the
     triangulation its relaxation last used (nodes moved less than ``RETRIANGULATE * hbar``
-    since); only the winner is triangulated again, which saves a Delaunay call per round.
+    since); only the winner is made Delaunay again, by flips from that triangulation.
     """
     tri = relax.final()
-    best: tuple[float, FloatArray, IntArray | None, IntArray] = (
-        float(triangle_quality(relax.p, tri).min()), relax.p.copy(), tri, kept
-    )
+    q = triangle_quality(relax.p, tri)
+    best: tuple[float, _Relaxation, IntArray] = (float(q.min()), relax, kept)
     iterations, triangulations = relax.iterations, relax.retriangulations
     p, cur_kept = relax.p, kept
     for _ in range(REPAIR_ROUNDS):
-        q = triangle_quality(p, tri)
         bad = np.flatnonzero(q < REPAIR_Q)
         if len(bad) == 0:
             break
@@ -512,14 +510,15 @@ def _repair(
         p, tri = state.p, state.tri
         iterations = state.iterations
         triangulations += state.retriangulations
-        qmin = float(triangle_quality(p, tri).min())
-        if qmin > best[0]:
-            best = (qmin, p.copy(), None, cur_kept)
-    final = best[2]
-    if final is None:
-        final = triangulate(relax.domain, best[1], relax.walls)
-        triangulations += 1
-    return best[1], final, best[3], iterations, triangulations
+        q = triangle_quality(p, tri)
+        if q.min() > best[0]:
+            # Later rounds work on a copy of state.p: the winner's nodes stay as they are.
+            best = (float(q.min()), state, cur_kept)
+    winner = best[1]
+    before = winner.retriangulations
+    final = winner.final()
+    triangulations += winner.retriangulations - before
+    return winner.p, final, best[2], iterations, triangulations
 
 
 def missing_walls(tri: IntArray, walls: IntArray) -> IntArray:
@@ -636,10 +635,11 @@ def _split_worthy(h: SizeFn, p: FloatArray, seg: IntArray) -> NDArray[np.bool_]:
 
 def _has_edges(tri: IntArray, walls: IntArray) -> NDArray[np.bool_]:
     """Whether each segment of ``walls (k, 2)`` is an edge of ``tri``."""
+    from .kernels.smooth import adjacency, has_edges
+
     n = int(max(tri.max(initial=0), walls.max(initial=0))) + 1
-    have = unique_edges(tri)
-    w = np.sort(walls, axis=1)
-    return np.isin(w[:, 0].astype(np.int64) * n + w[:, 1], have[:, 0].astype(np.int64) * n + have[:, 1])
+    indptr, adj, _, _ = adjacency(n, np.ascontiguousarray(tri, dtype=np.int32))
+    return np.asarray(has_edges(indptr, adj, np.ascontiguousarray(walls, dtype=np.int64)))
 
 
 def _optimize(

@@ -206,3 +206,25 @@ def rings(indptr, adj, seeds, k):  # type: ignore[no-untyped-def]
         front, nxt = nxt, front
         nf = nn
     return mask
+
+
+@njit(cache=True)
+def has_edges(indptr, adj, pairs):  # type: ignore[no-untyped-def]
+    """Whether each row (i, j) of ``pairs`` is an edge of the CSR adjacency (binary search)."""
+    n = indptr.shape[0] - 1
+    out = np.zeros(pairs.shape[0], dtype=np.bool_)
+    for r in range(pairs.shape[0]):
+        i = pairs[r, 0]
+        j = pairs[r, 1]
+        if i < 0 or j < 0 or i >= n or j >= n:
+            continue
+        lo = indptr[i]
+        hi = indptr[i + 1]
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if adj[mid] < j:
+                lo = mid + 1
+            else:
+                hi = mid
+        out[r] = lo < indptr[i + 1] and adj[lo] == j
+    return out
