@@ -75,7 +75,12 @@ Other choices the paper leaves open:
   (``triangulation.classify_by_walls``), so a triangle bridging a narrow notch is never kept.
   ``generate`` then checks the result (:mod:`injmesh.validate`).
 * **Stopping condition.**  No node moves more than ``DPTOL * hbar`` in a step, or the cap is
-  reached (then ``converged`` is False).
+  reached (then ``converged`` is False).  ``DPTOL = 3e-3``: over the paper's six cases at
+  h/2, h and 2h (18 meshes) it takes 2329 steps in all against 4089 with 1e-3, with worst
+  q_min 0.821 (1e-3: 0.817), mean q_mean 0.9673 (0.9669) and mean relative size error 0.0715
+  (0.0716); the repair and quality passes, not the last thousandths of a step, set the
+  quality.  5e-3 gave 2025 steps and worst q_min 0.818, 1e-2 1581 steps and 0.796.  On a
+  100 000-node square: 57 steps against 123, q_mean 0.99942 (0.99944), q_min 0.828 (0.828).
 """
 
 from __future__ import annotations
@@ -108,8 +113,9 @@ ATTRACTIVE_ITERATIONS = 20
 DT = 0.2
 #: Re-triangulate when a node has moved this fraction of its hbar since the last triangulation.
 RETRIANGULATE = 0.1
-#: Converged when no node moves more than this fraction of its hbar in a step.
-DPTOL = 1e-3
+#: Converged when no node moves more than this fraction of its hbar in a step (see the module
+#: documentation for how 3e-3 was chosen).
+DPTOL = 3e-3
 #: A step is clamped to this fraction of the node's hbar.  On the paper's six cases it never
 #: binds (the output is identical without it); it bounds how far a node can go between two
 #: connectivity updates (see DEEP).
