@@ -96,7 +96,7 @@ from scipy.spatial import cKDTree
 from ._arrays import lower_wins
 from .geometry import Domain
 from .progress import Callback, report
-from .quality import triangle_quality, unique_edges
+from .quality import triangle_quality
 from .triangulation import constrained_triangles, delaunay, inside_triangles, neighbours
 
 FloatArray = NDArray[np.float64]
@@ -664,7 +664,13 @@ def _optimize(
     nodes move to the projection of their target onto the boundary); moving nodes
     form an independent set, so each triangle changes by one node at most.  The connectivity
     is kept: the result is valid but not necessarily Delaunay.
+
+    Only candidates are visited: each sweep works on the stars of the nodes whose star has
+    q below ``OPTIMIZE_Q``, and q is recomputed only for the triangles that moved.  Since the
+    moving nodes are independent, a node's star sees no other move, so this is the same
+    computation as over the whole mesh.
     """
+    from .kernels.smooth import adjacency
     from .quality import signed_areas
 
     p = p.copy()
@@ -675,55 +681,78 @@ def _optimize(
     if len(walls):
         next_b[walls[:, 0]] = walls[:, 1]
         prev_b[walls[:, 1]] = walls[:, 0]
-    a, b = tri[:, [1, 2, 0]], tri[:, [2, 0, 1]]  # the edge opposite each corner, CCW
+    # Corners grouped by node (CSR, in increasing corner order): the star of each node.
     corner = tri.ravel()
+    by_node = np.argsort(corner, kind="stable")
+    start = np.zeros(n + 1, dtype=np.intp)
+    np.cumsum(np.bincount(corner, minlength=n), out=start[1:])
+    _, _, _, bars = adjacency(n, np.ascontiguousarray(tri, dtype=np.int32))
+    q = triangle_quality(p, tri)
+    star = np.full(n, np.inf)
+    np.minimum.at(star, corner, np.repeat(q, 3))
+
+    def corners_of(nodes: IntArray) -> tuple[IntArray, IntArray]:
+        """The corners (flat indices into tri) of ``nodes``' stars, and the position in
+        ``nodes`` each belongs to."""
+        cnt = start[nodes + 1] - start[nodes]
+        owner = np.repeat(np.arange(len(nodes)), cnt)
+        offset = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        return by_node[start[nodes][owner] + offset], owner
+
     for _ in range(OPTIMIZE_SWEEPS):
-        q = triangle_quality(p, tri)
-        star = np.full(n, np.inf)
-        np.minimum.at(star, corner, np.repeat(q, 3))
         cand = (star < OPTIMIZE_Q) & movable
         if not cand.any():
             break
-        pa, pb = p[a], p[b]
+        # Independent set, worst stars first (ties by index).
+        order = np.flatnonzero(cand)
+        order = order[np.argsort(star[order], kind="stable")]
+        rank = np.full(n, -1, dtype=np.intp)
+        rank[order] = np.arange(len(order))
+        both = cand[bars[:, 0]] & cand[bars[:, 1]]
+        ra, rb = rank[bars[both, 0]], rank[bars[both, 1]]
+        move = order[lower_wins(np.ones(len(order), dtype=bool), np.minimum(ra, rb), np.maximum(ra, rb))]
+        cs, owner = corners_of(move)
+        t_of, k_of = np.divmod(cs, 3)
+        # The apex of the equilateral triangle on the edge opposite each corner (CCW).
+        pa = p[tri[t_of, (k_of + 1) % 3]]
+        pb = p[tri[t_of, (k_of + 2) % 3]]
         e = pb - pa
-        apex = 0.5 * (pa + pb) + (np.sqrt(3) / 2) * np.stack([-e[..., 1], e[..., 0]], axis=-1)
-        target = np.stack(
-            [np.bincount(corner, apex[..., 0].ravel(), n), np.bincount(corner, apex[..., 1].ravel(), n)],
-            axis=1,
-        ) / np.maximum(np.bincount(corner, minlength=n), 1)[:, None]
-        # Independent set, worst stars first.
-        order = np.argsort(star, kind="stable")
-        rank = np.empty(n, dtype=np.intp)
-        rank[order] = np.arange(n)
-        edges = unique_edges(tri)
-        both = cand[edges[:, 0]] & cand[edges[:, 1]]
-        ra, rb = rank[edges[both, 0]], rank[edges[both, 1]]
-        keep = lower_wins(cand[order], np.minimum(ra, rb), np.maximum(ra, rb))
-        move = order[keep]
+        apex = 0.5 * (pa + pb) + (np.sqrt(3) / 2) * np.stack([-e[:, 1], e[:, 0]], axis=1)
+        cnt = np.bincount(owner, minlength=len(move))
+        target = np.stack([np.bincount(owner, apex[:, 0], len(move)),
+                           np.bincount(owner, apex[:, 1], len(move))], axis=1) / np.maximum(cnt, 1)[:, None]
         on_bnd = on_boundary[move]
+        sub = tri[t_of]
         # Line search: the full step to the target, then shorter ones, until the star improves.
         done = np.zeros(len(move), dtype=bool)
         for frac in (1.0, 0.5, 0.25, 0.125):
-            step = p[move] + frac * (target[move] - p[move])
+            step = p[move] + frac * (target - p[move])
             if on_bnd.any():
                 step[on_bnd] = domain.project(step[on_bnd])
             trial = p.copy()
             trial[move] = step
-            q_new = triangle_quality(trial, tri)
-            star_new = np.full(n, np.inf)
-            np.minimum.at(star_new, corner, np.repeat(q_new, 3))
-            flipped = np.zeros(n, dtype=bool)
-            flipped[tri[signed_areas(trial, tri) <= 0].ravel()] = True
+            q_new = triangle_quality(trial, sub)
+            star_new = np.full(len(move), np.inf)
+            np.minimum.at(star_new, owner, q_new)
+            flipped = np.zeros(len(move), dtype=bool)
+            flipped[owner[signed_areas(trial, sub) <= 0]] = True
             inside = domain.sdf(step) < 0
             pm, pp, pn = p[move], p[prev_b[move]], p[next_b[move]]
             stray = np.minimum(_segment_distance(step, pp, pm), _segment_distance(step, pm, pn))
             allow = 2.0 * _segment_distance(pm, pp, pn) + 0.1 * np.hypot(*(step - pm).T)
             home = ~on_bnd | (stray <= allow * (1 + 1e-9))
-            ok = ~done & (star_new[move] > star[move]) & ~flipped[move] & (inside | on_bnd) & home
+            ok = ~done & (star_new > star[move]) & ~flipped & (inside | on_bnd) & home
             p[move[ok]] = step[ok]
             done |= ok
         if not done.any():
             break
+        # q of the triangles that changed, and the stars of their nodes.
+        changed = np.unique(t_of[done[owner]])
+        q[changed] = triangle_quality(p, tri[changed])
+        nodes = np.unique(tri[changed])
+        cs, owner = corners_of(nodes)
+        star[nodes] = np.inf
+        np.minimum.at(star, nodes[owner], q[cs // 3])
     return p
 
 
