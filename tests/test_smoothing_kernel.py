@@ -133,3 +133,36 @@ def test_smooth_keeps_free_nodes_inside_with_deep_skip() -> None:
     p = np.concatenate([corners, 0.02 + 0.96 * rng.random((150, 2))])
     r = smooth(square, lambda x: np.full(len(x), 0.1), p, n_fixed=4)
     assert square.sdf(r.points).max() <= 1e-12
+
+
+def test_repair_edits_keep_a_valid_triangulation() -> None:
+    """Split an edge and collapse another on the triangle arrays, then Lawson flips: a valid
+    Delaunay triangulation of the new nodes, same area, every node used."""
+    from injmesh.quality import signed_areas
+    from injmesh.smoothing import _edited, _made_delaunay
+
+    square = Rectangle((0, 0), (1, 1))
+    rng = np.random.default_rng(5)
+    corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+    p = np.concatenate([corners, 0.1 + 0.8 * rng.random((40, 2))])
+    tri = delaunay(p)
+    edges = unique_edges(tri)
+    interior = edges[(edges >= 4).all(axis=1)]
+    split = interior[:1]
+    # A collapse whose two nodes share no node with the split.
+    rest = interior[~np.isin(interior, split).any(axis=1)]
+    collapse = rest[:1]
+    alive = np.ones(len(p), dtype=bool)
+    alive[collapse[:, 1]] = False
+    q = p.copy()
+    q[collapse[0, 0]] = 0.5 * (p[collapse[0, 0]] + p[collapse[0, 1]])
+    q = np.concatenate([q[alive], 0.5 * (p[split[:, 0]] + p[split[:, 1]])])
+    t = _made_delaunay(square, q, _edited(tri, alive, collapse, split), np.zeros((0, 2), np.intp))
+    assert signed_areas(q, t).min() > 0
+    assert np.array_equal(np.unique(t), np.arange(len(q)))
+    assert signed_areas(q, t).sum() == pytest.approx(1.0, rel=1e-12)
+    # Random nodes have no cocircular ties: the flips reach the one Delaunay triangulation.
+    def rows(x: np.ndarray) -> set[tuple[int, ...]]:
+        return {tuple(r) for r in np.sort(x, axis=1).tolist()}
+
+    assert rows(t) == rows(delaunay(q))

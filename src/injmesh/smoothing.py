@@ -20,7 +20,10 @@ Two bar forces are used, in this order (``smoothing="hybrid"``, the default):
    (too short) or split (too long) when its nodes are free interior nodes; non-conflicting
    repairs are applied together, the spring relaxation resumes on the nodes within
    ``REPAIR_RING`` edges of the changed ones only (the rest of the mesh is already at rest),
-   and the best round (by q_min) is kept; at most ``REPAIR_ROUNDS`` rounds.
+   and the best round (by q_min) is kept; at most ``REPAIR_ROUNDS`` rounds.  The edits are
+   made on the triangle arrays (a split edge's triangles are halved, a collapsed edge's
+   removed) and Lawson flips make the result Delaunay again: no triangulation from scratch
+   unless an edit inverts a triangle.
 4. **Quality pass.**  Free and sliding nodes of triangles with q < ``OPTIMIZE_Q`` move towards
    the mean equilateral apex over their opposite edges when that raises the worst quality of
    their star (line search, connectivity kept).
@@ -503,7 +506,8 @@ def _repair(
         # (in the new numbering; the dropped node's neighbours are the keeper's now).
         touched = np.concatenate([index[collapse[:, 0]], index[split.ravel()],
                                   alive.sum() + np.arange(len(new))])
-        tri = triangulate(relax.domain, p, relax.walls)
+        tri = _edited(tri, alive, collapse, split)
+        tri = _made_delaunay(relax.domain, p, tri, relax.walls)
         from .kernels.smooth import adjacency, rings
 
         indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32))
@@ -525,6 +529,54 @@ def _repair(
     final = winner.final()
     triangulations += winner.retriangulations - before
     return winner.p, final, best[2], iterations, triangulations
+
+
+def _edited(tri: IntArray, alive: NDArray[np.bool_], collapse: IntArray, split: IntArray) -> IntArray:
+    """The triangles after the repair's edge operations, in the new numbering.
+
+    A split edge a-b gets node ``n + k`` (k-th split) at its midpoint: each triangle (a, b, w)
+    on it becomes (a, m, w) and (m, b, w).  A collapse (keep, drop) renames drop to keep and
+    removes the triangles that had both.  Old nodes are then renumbered by ``alive`` and the
+    split nodes follow them.  The operations share no node, so no triangle has two split
+    edges; the result may have inverted triangles (see :func:`_made_delaunay`).
+    """
+    n = len(alive)
+    t = np.array(tri, dtype=np.intp, copy=True)
+    if len(split):
+        u = t.ravel()
+        v = t[:, [1, 2, 0]].ravel()
+        key = np.minimum(u, v).astype(np.int64) * n + np.maximum(u, v)
+        lo, hi = np.minimum(split[:, 0], split[:, 1]), np.maximum(split[:, 0], split[:, 1])
+        skey = lo.astype(np.int64) * n + hi
+        order = np.argsort(skey, kind="stable")
+        pos = np.minimum(np.searchsorted(skey[order], key), len(skey) - 1)
+        hit = np.flatnonzero(skey[order[pos]] == key)
+        rows, k = np.divmod(hit, 3)
+        m = n + order[pos[hit]]
+        a, b, w = u[hit], v[hit], t[rows, (k + 2) % 3]
+        t[rows] = np.stack([a, m, w], axis=1)
+        t = np.concatenate([t, np.stack([m, b, w], axis=1)])
+    if len(collapse):
+        rename = np.arange(n + len(split))
+        rename[collapse[:, 1]] = collapse[:, 0]
+        t = rename[t]
+        t = t[(t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 2] != t[:, 0])]
+    index = np.concatenate([np.cumsum(alive) - 1, int(alive.sum()) + np.arange(len(split))])
+    return np.asarray(index[t], dtype=np.intp)
+
+
+def _made_delaunay(domain: Domain, p: FloatArray, tri: IntArray, walls: IntArray) -> IntArray:
+    """``tri`` made Delaunay by Lawson flips (exact predicates; edges with one triangle stay),
+    or the domain's triangulation from scratch when ``tri`` has an inverted or flat triangle."""
+    from .kernels.delaunay import flip_to_delaunay as flip_kernel
+
+    t32 = np.ascontiguousarray(tri, dtype=np.int32)
+    nbr = np.ascontiguousarray(neighbours(tri), dtype=np.int32)
+    vt = np.full(len(p), -1, dtype=np.int32)
+    vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
+    if len(t32) == 0 or flip_kernel(p, t32, nbr, np.zeros(t32.shape, dtype=np.uint8), vt) < 0:
+        return triangulate(domain, p, walls)
+    return t32.astype(np.intp)
 
 
 def missing_walls(tri: IntArray, walls: IntArray) -> IntArray:
