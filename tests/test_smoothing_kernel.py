@@ -166,3 +166,12 @@ def test_repair_edits_keep_a_valid_triangulation() -> None:
         return {tuple(r) for r in np.sort(x, axis=1).tolist()}
 
     assert rows(t) == rows(delaunay(q))
+
+
+def test_tri_neighbours_match_triangulation_neighbours() -> None:
+    from injmesh.kernels.smooth import tri_neighbours
+    from injmesh.triangulation import neighbours
+
+    p, tri = _mesh(6, 200)
+    keep = tri[p[tri].mean(axis=1)[:, 0] < 0.6]  # a cut: some edges get one triangle
+    assert np.array_equal(tri_neighbours(len(p), keep), neighbours(keep.astype(np.intp)))

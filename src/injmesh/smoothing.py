@@ -100,7 +100,7 @@ from ._arrays import lower_wins
 from .geometry import Domain
 from .progress import Callback, report
 from .quality import triangle_quality
-from .triangulation import constrained_triangles, delaunay, inside_triangles, neighbours
+from .triangulation import constrained_triangles, delaunay, inside_triangles
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -223,7 +223,7 @@ class _Relaxation:
         """Take a new triangulation (from scratch): its neighbour table for the flips."""
         t32 = np.ascontiguousarray(tri, dtype=np.int32)
         self._t32 = t32
-        self._nbr = np.ascontiguousarray(neighbours(tri), dtype=np.int32)
+        self._nbr = self._k.tri_neighbours(len(self.p), t32)
         self._con = np.zeros(t32.shape, dtype=np.uint8)
         self._vt = np.full(len(self.p), -1, dtype=np.int32)
         self._vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
@@ -569,9 +569,10 @@ def _made_delaunay(domain: Domain, p: FloatArray, tri: IntArray, walls: IntArray
     """``tri`` made Delaunay by Lawson flips (exact predicates; edges with one triangle stay),
     or the domain's triangulation from scratch when ``tri`` has an inverted or flat triangle."""
     from .kernels.delaunay import flip_to_delaunay as flip_kernel
+    from .kernels.smooth import tri_neighbours
 
     t32 = np.ascontiguousarray(tri, dtype=np.int32)
-    nbr = np.ascontiguousarray(neighbours(tri), dtype=np.int32)
+    nbr = tri_neighbours(len(p), t32)
     vt = np.full(len(p), -1, dtype=np.int32)
     vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
     if len(t32) == 0 or flip_kernel(p, t32, nbr, np.zeros(t32.shape, dtype=np.uint8), vt) < 0:
