@@ -65,11 +65,13 @@ Other choices the paper leaves open:
     that, for distances that are not exact) skip ``domain.sdf`` at each step.
   - The boundary bars' ld for the sliding nodes (see :func:`_slide`).
 
-  On a 100 000-node unit square the smoothing loop went from 18 s of own time (NumPy gathers,
-  six bincounts, h and sdf of every node at every step) to about 2.5 s of kernel time.
-  The quality figures stay those of the paper's cases (see ``benchmarks/paper_cases.py``)
-  but are not bit-identical to the former NumPy step: repair rounds are sensitive to the
-  exact positions, and q_min moves by up to +-0.02 from case to case.
+  Measured with ``benchmarks/scale.py`` (CPU seconds of the smoothing stage, 2 cores under
+  heavy load): 1e3 nodes 0.15 -> 0.04, 1e4 2.44 -> 0.28, 1e5 17.8 -> 1.7, together with the
+  local repair, the candidate-only quality pass and ``DPTOL`` below; at 1e5 a step's two
+  kernels take about 12 + 5 ms and the one remaining full triangulation most of the rest.
+  The meshes are not bit-identical to those of the former NumPy step: repair rounds are
+  sensitive to the exact positions, and q_min moves by a few hundredths either way from case
+  to case (worst q_min over the paper's cases at h/2, h, 2h: 0.821, formerly 0.710).
 * **Boundary conformity.**  Delaunay keeps a boundary segment when no node lies in its
   diametral circle.  At the end, free nodes found in the circle of a missing segment are pushed
   just outside it and the nodes re-triangulated; a segment still missing is split at its
