@@ -26,7 +26,8 @@ Two bar forces are used, in this order (``smoothing="hybrid"``, the default):
    unless an edit inverts a triangle.
 4. **Quality pass.**  Free and sliding nodes of triangles with q < ``OPTIMIZE_Q`` move towards
    the mean equilateral apex over their opposite edges when that raises the worst quality of
-   their star (line search, connectivity kept).
+   their star (line search, connectivity kept).  Each sweep visits only those candidates'
+   stars.
 
 ``smoothing="attractive"`` runs the paper's force alone to its convergence, to reproduce the
 paper as printed.
@@ -47,8 +48,8 @@ Other choices the paper leaves open:
   node whose step would leave the domain keeps its place for that step.
 * **Re-triangulation.**  When some node has moved more than ``RETRIANGULATE * hbar`` since the
   last triangulation (DistMesh's ``ttol``), and once at the end, so the result is Delaunay.
-  A full triangulation runs only at the start and after repair changed the nodes; otherwise
-  the mesh is made Delaunay again by Lawson flips with exact predicates on the kept
+  A full triangulation runs only at the start (and where flips meet an inverted triangle,
+  and in the boundary recovery below); otherwise the mesh is made Delaunay again by Lawson flips with exact predicates on the kept
   triangles (``kernels.delaunay.flip_to_delaunay`` on the compact arrays and their neighbour
   table, kept between steps), which also keeps its boundary edges.
 * **The step** is compiled (:mod:`injmesh.kernels.smooth`): the bars are node neighbour lists
