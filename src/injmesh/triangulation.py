@@ -58,7 +58,16 @@ def delaunay(points: FloatArray) -> IntArray:
         live = LiveTriangulation(p)
     except DelaunayError as exc:
         raise TriangulationError(f"Delaunay triangulation failed: {exc}") from None
-    return live.triangles.astype(np.intp)
+    tri = live.triangles.astype(np.intp)
+    dup = live.duplicates
+    dropped = np.flatnonzero(dup >= 0)
+    if len(dropped):
+        # The kernel keeps the copy it inserted first; keep the lowest index instead, so a fixed
+        # node (they come first) is never the one left out in favour of a free node on it.
+        lowest = np.arange(len(p))
+        np.minimum.at(lowest, dup[dropped], dropped)
+        tri = lowest[tri]
+    return tri
 
 
 def inside_triangles(
@@ -86,9 +95,8 @@ def inside_triangles(
     p = _pts(points)
     tri = _tri(triangles, len(p))
     centroids, longest2, flat = mesh.centroids_and_flatness(p, tri, FLAT)
-    has_walls = walls is not None and len(walls) > 0
-    if has_walls:
-        w = _tri_pairs(walls, len(p))
+    w = None if walls is None or len(walls) == 0 else _tri_pairs(walls, len(p))
+    if w is not None:
         keep, open_ = classify_by_walls(tri, w)
         judge = np.flatnonzero(open_)
     else:
@@ -97,7 +105,7 @@ def inside_triangles(
     if len(judge):
         d = np.asarray(sdf(centroids[judge]), dtype=float).reshape(-1)
         keep[judge] = d <= 0
-        if has_walls:
+        if w is not None:
             near = judge[np.abs(d) < np.sqrt(longest2[judge])]
             if len(near):
                 keep[near] = inside_polygon(centroids[near], p[w[:, 0]], p[w[:, 1]])
