@@ -153,7 +153,8 @@ def test_delaunay_matches_qhull_on_random_points(seed: int) -> None:
     tri = delaunay(p)
     assert tri.dtype == np.intp
     assert np.all(signed_areas(p, tri) > 0)
-    assert _canonical(np.sort(tri, axis=1)).tolist() == _canonical(np.sort(Delaunay(p).simplices, axis=1)).tolist()
+    qhull = Delaunay(p).simplices
+    assert _canonical(np.sort(tri, axis=1)).tolist() == _canonical(np.sort(qhull, axis=1)).tolist()
 
 
 def _family(name: str) -> tuple[np.ndarray, np.ndarray]:
