@@ -319,9 +319,10 @@ def test_measures_match_the_formulas() -> None:
                   - (x[:, 1, 1] - x[:, 0, 1]) * (x[:, 2, 0] - x[:, 0, 0]))
     assert np.array_equal(signed_areas(p, tri), area)
     sides = np.stack([np.hypot(*(x[:, (k + 2) % 3] - x[:, (k + 1) % 3]).T) for k in range(3)], axis=1)
-    assert np.array_equal(edge_lengths(p, tri), sides)
+    np.testing.assert_allclose(edge_lengths(p, tri), sides, rtol=1e-15)
     a, b, c = sides.T
-    assert np.array_equal(triangle_quality(p, tri), (b + c - a) * (c + a - b) * (a + b - c) / (a * b * c))
+    q = (b + c - a) * (c + a - b) * (a + b - c) / (a * b * c)
+    np.testing.assert_allclose(triangle_quality(p, tri), q, rtol=1e-12, atol=1e-14)
     assert triangle_quality(np.zeros((3, 2)), np.array([[0, 1, 2]])).tolist() == [0.0]
     with pytest.raises(IndexError, match="node 200"):
         signed_areas(p, np.array([[0, 1, 200]]))
