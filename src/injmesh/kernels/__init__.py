@@ -7,6 +7,9 @@ its algorithm (no NumPy twin) and is deterministic: same inputs, bit-identical o
 * :mod:`injmesh.kernels.predicates` -- adaptive-precision exact ``orient2d`` and ``incircle``.
 * :mod:`injmesh.kernels.delaunay` -- incremental Delaunay triangulation with a live adjacency
   structure (flips, point location, local insertion and removal, edge recovery).
+* :mod:`injmesh.kernels.mesh` -- loops over plain mesh arrays: distinct edges, neighbours and
+  boundary edges without a global sort, areas, side lengths, quality, and the flood fill that
+  tells inside from outside.
 
 Every kernel is ``@njit(cache=True)``: the first call compiles (tens of seconds for the whole
 Delaunay module on a cold cache) and later processes load the machine code from
