@@ -168,10 +168,3 @@ def test_repair_edits_keep_a_valid_triangulation() -> None:
     assert rows(t) == rows(delaunay(q))
 
 
-def test_tri_neighbours_match_triangulation_neighbours() -> None:
-    from injmesh.kernels.smooth import tri_neighbours
-    from injmesh.triangulation import neighbours
-
-    p, tri = _mesh(6, 200)
-    keep = tri[p[tri].mean(axis=1)[:, 0] < 0.6]  # a cut: some edges get one triangle
-    assert np.array_equal(tri_neighbours(len(p), keep), neighbours(keep.astype(np.intp)))

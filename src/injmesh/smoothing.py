@@ -48,10 +48,11 @@ Other choices the paper leaves open:
   node whose step would leave the domain keeps its place for that step.
 * **Re-triangulation.**  When some node has moved more than ``RETRIANGULATE * hbar`` since the
   last triangulation (DistMesh's ``ttol``), and once at the end, so the result is Delaunay.
-  A full triangulation runs only at the start (and where flips meet an inverted triangle,
-  and in the boundary recovery below); otherwise the mesh is made Delaunay again by Lawson flips with exact predicates on the kept
-  triangles (``kernels.delaunay.flip_to_delaunay`` on the compact arrays and their neighbour
-  table, kept between steps), which also keeps its boundary edges.
+  A full triangulation (our exact Delaunay kernel) runs only at the start, where flips meet
+  an inverted triangle, and in the boundary recovery below; otherwise the mesh is made
+  Delaunay again by Lawson flips with exact predicates on the kept triangles
+  (``kernels.delaunay.flip_to_delaunay`` on the compact arrays and their neighbour table,
+  kept between steps), which also keeps its boundary edges.
 * **The step** is compiled (:mod:`injmesh.kernels.smooth`): the bars are node neighbour lists
   in CSR form built once per connectivity, and each node gathers its own bar forces in a fixed
   order, so the result is bit-identical whatever the thread count (the kernels are serial).
@@ -226,7 +227,7 @@ class _Relaxation:
         """Take a new triangulation (from scratch): its neighbour table for the flips."""
         t32 = np.ascontiguousarray(tri, dtype=np.int32)
         self._t32 = t32
-        self._nbr = self._k.tri_neighbours(len(self.p), t32)
+        self._nbr = _neighbours32(t32, len(self.p))
         self._con = np.zeros(t32.shape, dtype=np.uint8)
         self._vt = np.full(len(self.p), -1, dtype=np.int32)
         self._vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
@@ -247,7 +248,7 @@ class _Relaxation:
         indptr, adj, eid, bars = k.adjacency(len(p), self._t32)
         ld = np.ascontiguousarray(self.h(0.5 * (p[bars[:, 0]] + p[bars[:, 1]])), dtype=np.float64)
         hbar = k.mean_bar_size(indptr, eid, ld)
-        # A node in no triangle (Qhull drops coincident points) feels no force; its own h
+        # A node in no triangle (the triangulation leaves out coincident points) feels no force; its own h
         # keeps the relative measures finite.
         lonely = np.flatnonzero(indptr[1:] == indptr[:-1])
         if len(lonely):
@@ -460,7 +461,7 @@ def smooth(
         on_boundary[wall.ravel()] = True
         on_boundary[slide[:, 0]] = True
         p = _optimize(domain, p, tri, movable, on_boundary, wall)
-    # Drop nodes that no triangle uses (Qhull leaves out coincident points, for example).
+    # Drop nodes that no triangle uses (the triangulation leaves out coincident points, for example).
     used = np.zeros(len(p), dtype=bool)
     used[tri.ravel()] = True
     remap = np.cumsum(used) - 1
@@ -568,14 +569,20 @@ def _edited(tri: IntArray, alive: NDArray[np.bool_], collapse: IntArray, split: 
     return np.asarray(index[t], dtype=np.intp)
 
 
+def _neighbours32(t32: NDArray[np.int32], n: int) -> NDArray[np.int32]:
+    """The flip kernel's neighbour table (int32, -1 on the hull) of the triangles ``t32``."""
+    from .kernels.mesh import neighbours
+
+    return np.asarray(neighbours(t32, n), dtype=np.int32)
+
+
 def _made_delaunay(domain: Domain, p: FloatArray, tri: IntArray, walls: IntArray) -> IntArray:
     """``tri`` made Delaunay by Lawson flips (exact predicates; edges with one triangle stay),
     or the domain's triangulation from scratch when ``tri`` has an inverted or flat triangle."""
     from .kernels.delaunay import flip_to_delaunay as flip_kernel
-    from .kernels.smooth import tri_neighbours
 
     t32 = np.ascontiguousarray(tri, dtype=np.int32)
-    nbr = tri_neighbours(len(p), t32)
+    nbr = _neighbours32(t32, len(p))
     vt = np.full(len(p), -1, dtype=np.int32)
     vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
     if len(t32) == 0 or flip_kernel(p, t32, nbr, np.zeros(t32.shape, dtype=np.uint8), vt) < 0:

@@ -10,6 +10,10 @@ its algorithm (no NumPy twin) and is deterministic: same inputs, bit-identical o
 * :mod:`injmesh.kernels.mesh` -- loops over plain mesh arrays: distinct edges, neighbours and
   boundary edges without a global sort, areas, side lengths, quality, and the flood fill that
   tells inside from outside.
+* :mod:`injmesh.kernels.smooth` -- Step 3's Euler step in gather form over node neighbour lists
+  (bar forces, hbar, the capped step), k-rings and edge look-ups for local repair.
+* :mod:`injmesh.kernels.brep`, :mod:`injmesh.kernels.fastmarch`, :mod:`injmesh.kernels.interp`
+  -- B-rep distance and projection (BVH), fast marching for gradation, size-field interpolation.
 
 Every kernel is ``@njit(cache=True)``: the first call compiles (tens of seconds for the whole
 Delaunay module on a cold cache) and later processes load the machine code from

@@ -238,37 +238,3 @@ def has_edges(indptr, adj, pairs):  # type: ignore[no-untyped-def]
                 hi = mid
         out[r] = lo < indptr[i + 1] and adj[lo] == j
     return out
-
-
-@njit(cache=True)
-def tri_neighbours(n, tri):  # type: ignore[no-untyped-def]
-    """``nbr (m, 3) int32``: the triangle across the edge opposite each corner, -1 where the
-    edge has one triangle (the convention of ``triangulation.neighbours``)."""
-    m = tri.shape[0]
-    cnt = np.zeros(n + 1, dtype=np.int64)
-    for t in range(m):
-        for k in range(3):
-            cnt[tri[t, k] + 1] += 1
-    start = np.cumsum(cnt)
-    fill = start[:n].copy()
-    inc = np.empty(start[n], dtype=np.int32)
-    for t in range(m):
-        for k in range(3):
-            v = tri[t, k]
-            inc[fill[v]] = t
-            fill[v] += 1
-    nbr = np.full((m, 3), -1, dtype=np.int32)
-    for t in range(m):
-        for k in range(3):
-            b = tri[t, (k + 1) % 3]
-            c = tri[t, (k + 2) % 3]
-            # The other triangle has the edge as c -> b.
-            for e in range(start[c], start[c + 1]):
-                u = inc[e]
-                if u == t:
-                    continue
-                if (tri[u, 0] == c and tri[u, 1] == b) or (tri[u, 1] == c and tri[u, 2] == b) or (
-                        tri[u, 2] == c and tri[u, 0] == b):
-                    nbr[t, k] = u
-                    break
-    return nbr
