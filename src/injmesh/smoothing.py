@@ -346,40 +346,24 @@ def _slide(
     ``ld`` the desired lengths of the bars to the previous and next boundary neighbours.
     Returns each node's move over its hbar.
     """
-    b, bp, bn = slide.T
-    old = p[b]
-    hb = hbar[b]
+    from .kernels.smooth import slide_accept, slide_targets
+
     # Half the node's total force, half its two boundary bars (a 1-D spring along the boundary,
     # as in balancing): all of the former lets the interior squeeze boundary edges to 0.7 h;
-    # only the latter leaves bad triangles at the boundary.
-    fb = 0.5 * (total[b] + _spring(old, p[bp], ld[0]) + _spring(old, p[bn], ld[1]))
-    cand = project(old + DT * hb[:, None] * fb)
-    # Barriers as in Algorithm 3: a step shorter than half the gap to either neighbour can
-    # neither overtake it nor jump across a corner to another curve.
-    gap = np.minimum(np.hypot(*(old - p[bp]).T), np.hypot(*(old - p[bn]).T))
-    step = np.hypot(*(cand - old).T)
-    ok = step < 0.5 * gap
-    # The projection must keep the node on its own stretch of boundary, next to the two
-    # segments it had, not across a slit or notch narrower than the step (there the nearest
-    # boundary point is on the opposite wall).  A curved boundary strays from the two segments
-    # by about its own sagitta there, the distance of the node from its neighbours' chord; a
-    # straight wall by nothing.
-    stray = np.minimum(_segment_distance(cand, p[bp], old), _segment_distance(cand, old, p[bn]))
-    allow = 2.0 * _segment_distance(old, p[bp], p[bn]) + 0.1 * step
-    ok &= stray <= allow + 1e-9 * hb
-    # Nor may a step close a gap below half of h: at a sharp corner the interior pushes
-    # boundary nodes into the tip, where they would crowd without end.
-    new_gap = np.minimum(np.hypot(*(cand - p[bp]).T), np.hypot(*(cand - p[bn]).T))
-    ok &= new_gap >= np.minimum(gap, 0.5 * hb)
-    p[b[ok]] = cand[ok]
-    return np.where(ok, step, 0.0) / hb
-
-
-def _spring(u: FloatArray, v: FloatArray, ld: FloatArray) -> FloatArray:
-    """Spring force of bars u-v on u, rest length ``ld``."""
-    vec = u - v
-    lc = np.maximum(np.hypot(*vec.T), 1e-300)
-    return ((ld - lc) / (ld * lc))[:, None] * vec
+    # only the latter leaves bad triangles at the boundary.  Then the barriers of Algorithm 3:
+    # a step shorter than half the gap to either neighbour can neither overtake it nor jump
+    # across a corner to another curve; the projection must keep the node on its own stretch
+    # of boundary, next to the two segments it had, not across a slit or notch narrower than
+    # the step (there the nearest boundary point is on the opposite wall; a curved boundary
+    # strays from the two segments by about its own sagitta, a straight wall by nothing); nor
+    # may a step close a gap below half of h (at a sharp corner the interior pushes boundary
+    # nodes into the tip, where they would crowd without end).
+    target = np.empty((len(slide), 2))
+    slide_targets(p, slide, total, hbar, ld[0], ld[1], DT, target)
+    cand = np.ascontiguousarray(project(target), dtype=np.float64)
+    moved = np.empty(len(slide))
+    slide_accept(p, slide, hbar, cand, moved)
+    return moved
 
 
 def _segment_distance(q: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
