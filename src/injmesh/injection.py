@@ -21,6 +21,11 @@ built.  The front is a set of *chains*: polylines of nodes with the unmeshed reg
    gaps left are below about ``(MERGE + sqrt(3)/2) h`` wide and smoothing closes them.
 4. **Advance.**  The surviving runs of consecutive points are the next front.
 
+The proximity tests of step 3 run on a background grid of about h_min cells that every
+admitted node is inserted into as it is admitted (:mod:`injmesh.kernels.inject`): nothing is
+rebuilt per layer, so the whole injection is linear in the number of nodes.  The wall test
+measures the exact distance to the boundary segments of Step 1 listed in the nearby cells.
+
 *Stopping condition*: a layer in which no point survives (the front is exhausted), or
 ``diameter / (sqrt(3)/2 * h_min) + 10`` layers.
 
@@ -32,13 +37,12 @@ outside the domain.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
-from ._arrays import lower_wins
 from .boundary import BoundaryMesh
 from .errors import NodeBudgetError
 from .geometry import Domain
@@ -55,6 +59,8 @@ HEIGHT = np.sqrt(3.0) / 2.0
 MERGE = 0.6
 #: A new node closer than CLEARANCE * h to a boundary segment is not injected.
 CLEARANCE = 0.5
+#: Most cells of the proximity grid (16 MiB of list heads).
+MAX_CELLS = 1 << 21
 #: Angle (degrees) between injected points on the arc around a reflex front vertex.
 FAN_STEP = 60.0
 
@@ -117,15 +123,17 @@ def inject_nodes(
     front = Front(boundary.points, counts, np.ones(len(counts), dtype=bool))
     placed = [existing]
     n_placed = len(existing)
-    index = _NodeIndex(existing)
-    walls = _Walls(boundary)
-    h_min = float(h(boundary.points).min())
+    h_bnd = h(boundary.points)
+    h_min = float(h_bnd.min())
+    h_existing = np.concatenate([h_bnd, h(existing[len(boundary.points):])]) if _starts_with(
+        existing, boundary.points) else h(existing)
+    grid = _Proximity(domain, boundary, existing, h_existing, h_min)
     max_layers = int(domain.diameter / (HEIGHT * h_min)) + 10
 
     for layer in range(1, max_layers + 1):
         cand = _inject(front, domain, h)
         cand = _respace(cand, domain, h)
-        keep = _admissible(domain, h, cand.points, index, walls)
+        keep = _admissible(domain, h, cand.points, grid)
         if not keep.any():
             break
         front = _survivors(cand, keep)
@@ -133,8 +141,6 @@ def inject_nodes(
         n_placed += len(front.points)
         if n_placed > max_nodes:
             raise NodeBudgetError(f"node injection passed max_nodes={max_nodes} (layer {layer})")
-        # The index must see every node placed so far: fronts from far away meet here later.
-        index.add(front.points)
         report(callback, "injection", layer, max_layers, nodes=n_placed, front=len(front))
         front = _drop_isolated(front)
         if len(front) == 0:
@@ -142,6 +148,11 @@ def inject_nodes(
     # The layer count is not known in advance: close the progress at 100 %.
     report(callback, "injection", max_layers, max_layers, nodes=n_placed, front=0)
     return np.concatenate(placed[1:]) if len(placed) > 1 else np.empty((0, 2))
+
+
+def _starts_with(a: FloatArray, b: FloatArray) -> bool:
+    """Whether the rows of ``b`` are the first rows of ``a`` (the boundary nodes among the seeds)."""
+    return len(a) >= len(b) and np.array_equal(a[: len(b)], b)
 
 
 def _h_inside(domain: Domain, h: SizeFn, q: FloatArray) -> FloatArray:
@@ -253,85 +264,75 @@ def _respace(front: Front, domain: Domain, h: SizeFn) -> Front:
     return Front(out, count, closed_out)
 
 
-class _Walls:
-    """Distance to the boundary polyline of Step 1 (not to d, which may vanish inside)."""
+class _Proximity:
+    """The nodes placed so far and the boundary segments, on a background grid (compiled).
 
-    def __init__(self, boundary: BoundaryMesh) -> None:
-        self.p = boundary.points
-        self.tree = cKDTree(boundary.points)
-        prev = np.empty(len(boundary.points), dtype=np.intp)
-        prev[boundary.edges[:, 1]] = boundary.edges[:, 0]
-        self.prev, self.next = prev, boundary.edges[:, 1]
-
-    def distance(self, q: FloatArray) -> FloatArray:
-        """Distance to the nearest of the two boundary segments at the nearest boundary node."""
-        _, k = self.tree.query(q, k=1)
-        out = np.full(len(q), np.inf)
-        for other in (self.prev[k], self.next[k]):
-            a, b = self.p[k], self.p[other]
-            ab = b - a
-            ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
-            t = np.clip(np.einsum("ij,ij->i", q - a, ab) / ab2, 0, 1)
-            out = np.minimum(out, np.hypot(*(q - a - t[:, None] * ab).T))
-        return out
-
-
-class _NodeIndex:
-    """Every node placed so far, for nearest-node queries.
-
-    A k-d tree rebuilt over all nodes after every layer costs O(n) per layer, O(n^1.5) in all.
-    Here the nodes live in a few trees of geometrically growing sizes (a log-structured merge):
-    a new layer becomes a tree of its own and is merged with the smaller trees at the end, so a
-    node is rebuilt into a tree O(log n) times; a query asks each of the O(log n) trees.
+    Cells are about the smallest boundary h wide (at most ``MAX_CELLS`` of them over the
+    domain's box, so a tiny h in a large box makes cells coarser, not the grid huge).  Nodes
+    are inserted layer by layer into per-cell lists, never rebuilt; see
+    :mod:`injmesh.kernels.inject`.  Each node keeps the h it was admitted with, so the merge
+    test needs no further evaluation of h.
     """
 
-    def __init__(self, points: FloatArray) -> None:
-        self.parts: list[FloatArray] = []
-        self.trees: list[cKDTree] = []
-        self.add(points)
+    def __init__(self, domain: Domain, boundary: BoundaryMesh, existing: FloatArray,
+                 h_existing: FloatArray, h_min: float) -> None:
+        from .kernels import inject as kern
 
-    def add(self, points: FloatArray) -> None:
-        pts = points
-        while self.parts and len(self.parts[-1]) <= 2 * len(pts):
-            pts = np.concatenate([self.parts.pop(), pts])
-            self.trees.pop()
-        if len(pts):
-            self.parts.append(pts)
-            self.trees.append(cKDTree(pts))
+        self.kern = kern
+        x0, y0, x1, y1 = (float(v) for v in domain.bbox)
+        lo = np.minimum([x0, y0], existing.min(axis=0)) if len(existing) else np.array([x0, y0])
+        hi = np.maximum([x1, y1], existing.max(axis=0)) if len(existing) else np.array([x1, y1])
+        w, ht = float(hi[0] - lo[0]), float(hi[1] - lo[1])
+        cell = max(h_min, math.sqrt(max(w * ht, 0.0) / MAX_CELLS), 1e-12 * max(w, ht, 1e-300))
+        self.cell = cell
+        self.nx = int(w / cell) + 1
+        self.ny = int(ht / cell) + 1
+        self.x0, self.y0 = float(lo[0]), float(lo[1])
+        self.head = np.full(self.nx * self.ny, -1, dtype=np.int64)
+        cap = max(1024, 2 * len(existing))
+        self.pts = np.empty((cap, 2))
+        self.hs = np.empty(cap)
+        self.link = np.empty(cap, dtype=np.int64)
+        self.n = len(existing)
+        self.pts[: self.n] = existing
+        self.hs[: self.n] = h_existing
+        self.h_max = float(h_existing.max()) if len(existing) else 0.0
+        kern.insert(self.pts, 0, self.n, self.head, self.link, self.x0, self.y0, 1.0 / cell,
+                    self.nx, self.ny)
+        e = boundary.edges
+        self.seg_a = np.ascontiguousarray(boundary.points[e[:, 0]])
+        self.seg_b = np.ascontiguousarray(boundary.points[e[:, 1]])
+        self.rows, self.items = kern.segment_lists(self.seg_a, self.seg_b, self.x0, self.y0, cell,
+                                                   self.nx, self.ny)
 
-    def nearest(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Distance to the nearest node and that node, for each of ``q``."""
-        best = np.full(len(q), np.inf)
-        near = np.zeros_like(q)
-        for pts, tree in zip(self.parts, self.trees, strict=True):
-            d, i = tree.query(q, k=1)
-            closer = d < best
-            best[closer] = d[closer]
-            near[closer] = pts[i[closer]]
-        return best, near
+    def admit(self, q: FloatArray, hq: FloatArray, inside: BoolArray) -> BoolArray:
+        """Which candidates survive (Step 3 of the module doc); the survivors are inserted."""
+        need = self.n + len(q)
+        if need > len(self.pts):
+            cap = max(need, 2 * len(self.pts))
+            self.pts = np.concatenate([self.pts[: self.n], np.empty((cap - self.n, 2))])
+            self.hs = np.concatenate([self.hs[: self.n], np.empty(cap - self.n)])
+            self.link = np.concatenate([self.link[: self.n], np.empty(cap - self.n, dtype=np.int64)])
+        keep = inside.copy()
+        self.n = int(self.kern.admit(
+            np.ascontiguousarray(q), hq, keep, MERGE, CLEARANCE, self.pts, self.hs, self.n,
+            self.h_max, self.head, self.link, self.seg_a, self.seg_b, self.rows, self.items,
+            self.x0, self.y0, self.cell, self.nx, self.ny,
+        ))
+        if keep.any():
+            self.h_max = max(self.h_max, float(hq[keep].max()))
+        return keep
 
 
-def _admissible(domain: Domain, h: SizeFn, q: FloatArray, index: _NodeIndex, walls: _Walls) -> BoolArray:
+def _admissible(domain: Domain, h: SizeFn, q: FloatArray, grid: _Proximity) -> BoolArray:
     """Points inside, clear of the boundary, of existing nodes and of lower-numbered new points."""
     if len(q) == 0:
         return np.zeros(0, dtype=bool)
-    keep = domain.sdf(q) < 0
+    inside = domain.sdf(q) < 0
     hq = np.ones(len(q))
-    hq[keep] = h(q[keep])
-    keep &= walls.distance(q) >= CLEARANCE * hq
-    dist, nearest = index.nearest(q)
-    # Symmetric in the two nodes' h, so a fine front and a coarse one judge each other alike.
-    keep &= dist >= MERGE * 0.5 * (hq + h(nearest))
-    idx = np.flatnonzero(keep)
-    if len(idx) > 1:
-        pairs = cKDTree(q[idx]).query_pairs(MERGE * float(hq[idx].max()), output_type="ndarray")
-        if len(pairs):
-            i, j = idx[pairs[:, 0]], idx[pairs[:, 1]]
-            lo, hi = np.minimum(i, j), np.maximum(i, j)
-            close = np.hypot(*(q[lo] - q[hi]).T) < MERGE * 0.5 * (hq[lo] + hq[hi])
-            lo, hi = lo[close], hi[close]
-            keep = lower_wins(keep, lo, hi)
-    return keep
+    if inside.any():
+        hq[inside] = h(q[inside])
+    return grid.admit(q, hq, inside)
 
 
 def _survivors(front: Front, keep: BoolArray) -> Front:
