@@ -81,6 +81,13 @@ def estimate_nodes(
     an estimate used for the node budget and the tracing resolution, not a bound (a feature of
     h narrower than every sample spacing can still be missed).
     """
+    from dataclasses import replace
+
+    from .sizing import SizeFunction
+
+    if isinstance(h, SizeFunction) and h.domain is domain:
+        # h is asked only where d <= 0 here: the restriction's own sdf call would repeat ours.
+        h = replace(h, domain=None)
     x0, y0, x1, y1 = domain.bbox
     side = max(x1 - x0, y1 - y0) / cells
     i, j = np.meshgrid(np.arange(cells), np.arange(cells))
