@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import _tolerances as tol
-from ..geometry import Domain, GeometryError
+from ..geometry import BRep, Circle, Domain, GeometryError, Rectangle
 from ._core import SizeError, SizeFunction
 
 FloatArray = NDArray[np.float64]
@@ -44,6 +44,8 @@ THICK_RATIO = 3.0
 THIN_REFINEMENTS = 12
 #: Points per sdf call while sampling the grid (bounds the memory of sdf temporaries).
 CHUNK = 1 << 18
+#: With an exact boundary, d is evaluated only at nodes within NEAR spacings of it.
+NEAR = 2.0
 
 
 @dataclass(frozen=True)
@@ -154,19 +156,63 @@ def make_background(domain: Domain, spacing: float, capped: bool = False, check:
     nx, ny = cells(domain.bbox, spacing)
     x = x0 + spacing * (np.arange(nx, dtype=np.float64) - PAD)
     y = y0 + spacing * (np.arange(ny, dtype=np.float64) - PAD)
-    d = np.empty(nx * ny)
-    rows = max(1, CHUNK // nx)
-    for j0 in range(0, ny, rows):
-        yy = y[j0 : j0 + rows]
-        X, Y = np.meshgrid(x, yy)
-        d[j0 * nx : j0 * nx + X.size] = domain.sdf(np.stack([X.ravel(), Y.ravel()], axis=1))
-    grid = Background(x=x, y=y, d=d.reshape(ny, nx), spacing=float(spacing), capped=capped)
+    grid = Background(x=x, y=y, d=_sdf_on_grid(domain, x, y, float(spacing)), spacing=float(spacing),
+                      capped=capped)
     if check and not grid.inside.any():
         raise SizeError(
             f"no background grid node (spacing {spacing:g}) lies inside the domain: it is thinner "
             "than the grid; pass a smaller spacing"
         )
     return grid
+
+
+def exact_boundary(domain: Domain) -> BRep | None:
+    """The domain's exact boundary (segments and arcs, domain on the left), if it has one."""
+    if isinstance(domain, BRep):
+        return domain
+    exact = getattr(domain, "exact_brep", None)
+    out = exact() if callable(exact) else None
+    return out if isinstance(out, BRep) else None
+
+
+def _sdf_on_grid(domain: Domain, x: FloatArray, y: FloatArray, spacing: float) -> FloatArray:
+    """d at the grid nodes, ``(ny, nx)``; exact within ``NEAR`` spacings of the boundary.
+
+    With an exact boundary the sign of every node comes from scanlines over the boundary
+    polylines (:mod:`injmesh.kernels.raster`) and only the nodes near the boundary are
+    evaluated; the others carry ``-NEAR * spacing`` inside and ``+NEAR * spacing`` outside, a
+    lower bound of ``|d|`` there (nothing reads the magnitude away from the boundary).  Other
+    domains, and circles and rectangles, are evaluated at every node.
+    """
+    nx, ny = len(x), len(y)
+    # A circle's or a rectangle's d is a closed formula, cheaper than the scan.
+    brep = None if isinstance(domain, (Circle, Rectangle)) else exact_boundary(domain)
+    if brep is None:
+        X, Y = np.meshgrid(x, y)
+        return _sdf_chunked(domain, np.stack([X.ravel(), Y.ravel()], axis=1)).reshape(ny, nx)
+    from ..kernels.raster import scan
+
+    # Polylines within spacing / 8 of the boundary (arcs are sampled finer than ``spacing`` and
+    # at 16 points per turn at least), cut so that every segment's box is about a cell.
+    loops = [densify(np.asarray(loop, dtype=np.float64), spacing) for loop in brep.boundary_loops(spacing)
+             if len(loop) >= 2]
+    a = np.concatenate(loops) if loops else np.empty((0, 2))
+    b = np.concatenate([np.roll(loop, -1, axis=0) for loop in loops]) if loops else np.empty((0, 2))
+    reach = NEAR * spacing
+    inside, near = scan(x, y, a, b, reach)
+    d = np.where(inside, -reach, reach)
+    if near.any():
+        jj, ii = np.nonzero(near)
+        d[jj, ii] = _sdf_chunked(domain, np.stack([x[ii], y[jj]], axis=1))
+    return d
+
+
+def _sdf_chunked(domain: Domain, p: FloatArray) -> FloatArray:
+    """``domain.sdf`` in chunks of ``CHUNK`` points (bounds the memory of its temporaries)."""
+    out = np.empty(len(p))
+    for k in range(0, len(p), CHUNK):
+        out[k : k + CHUNK] = domain.sdf(p[k : k + CHUNK])
+    return out
 
 
 def densify(loop: FloatArray, step: float) -> FloatArray:
@@ -184,20 +230,24 @@ def probe_min(h: SizeFunction, domain: Domain) -> float:
     """The smallest size at a coarse sample of the domain: nodes inside and boundary points."""
     x0, y0, x1, y1 = domain.bbox
     step = max(x1 - x0, y1 - y0) / PROBE_CELLS
-    pts = []
+    inner, rim = np.empty((0, 2)), np.empty((0, 2))
     try:
         coarse = make_background(domain, step)
-        pts.append(coarse.nodes(coarse.inside))
+        inner = coarse.nodes(coarse.inside)
     except SizeError:  # thinner than the probe grid: its boundary points still tell h_min
         pass
     try:
-        pts += [densify(loop, step) for loop in domain.boundary_loops(step)]
+        loops = [densify(loop, step) for loop in domain.boundary_loops(step)]
+        rim = np.concatenate(loops) if loops else rim
     except ValueError:  # a domain whose boundary cannot be traced at this scale: nodes suffice
         pass
-    if not pts:
+    if not len(inner) and not len(rim):
         raise GeometryError("the domain is empty: no node of the probe grid inside, no boundary curve")
-    p = np.concatenate(pts)
-    return float(h.restricted(domain)(p).min())
+    # The grid's inside nodes are inside (d <= 0): h is asked there directly; the boundary
+    # points (chords of curves may lie just outside) go through the restriction.
+    lows = [float(np.min(h(inner))) if len(inner) else np.inf,
+            float(np.min(h.restricted(domain)(rim))) if len(rim) else np.inf]
+    return min(min(lows), float(domain.diameter))
 
 
 def sample_size(h: SizeFunction, domain: Domain, grid: Background, rate: float = 0.0) -> FloatArray:

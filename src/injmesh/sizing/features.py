@@ -43,7 +43,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..geometry import BRep, Circle, Domain, GeometryError, Polygon, as_domain
+from ..geometry import Circle, Domain, GeometryError, Polygon, as_domain
 from ._core import SizeError, SizeFunction, SizeLike, as_size_function
 from .background import (
     CELLS_PER_H,
@@ -51,6 +51,7 @@ from .background import (
     Background,
     check_grid_options,
     densify,
+    exact_boundary,
     fit_spacing,
     make_background,
     resolving_background,
@@ -206,15 +207,6 @@ def thinnest_gap(domain: Domain, grid: Background, corner_angle: float) -> float
         return np.inf
     across = domain.sdf(0.5 * (seg_a[u] + seg_a[v])) < 0
     return float(dist[across].min()) if across.any() else np.inf
-
-
-def exact_boundary(domain: Domain) -> BRep | None:
-    """The domain's exact boundary (segments and arcs, domain on the left), if it has one."""
-    if isinstance(domain, BRep):
-        return domain
-    exact = getattr(domain, "exact_brep", None)
-    out = exact() if callable(exact) else None
-    return out if isinstance(out, BRep) else None
 
 
 def _dot(u: FloatArray, w: FloatArray) -> FloatArray:
