@@ -36,3 +36,23 @@ def test_grid_signs_and_near_values_match_the_sdf(domain, cells: int) -> None:
     assert np.array_equal(got[near], full[near])
     # Elsewhere the magnitude is a lower bound of |d|.
     assert np.all(np.abs(got) <= np.abs(full) + 1e-12 * s)
+
+
+@pytest.mark.parametrize("domain", _domains()[:8])
+def test_inside_test_answers_as_the_sdf(domain) -> None:
+    from injmesh.sizing.background import inside_test
+
+    x0, y0, x1, y1 = domain.bbox
+    test = inside_test(domain, max(x1 - x0, y1 - y0) / 97)
+    rng = np.random.default_rng(3)
+    w, h = x1 - x0, y1 - y0
+    p = rng.random((5000, 2)) * [1.4 * w, 1.4 * h] + [x0 - 0.2 * w, y0 - 0.2 * h]
+    # Points on the boundary itself too.
+    rim = np.concatenate(domain.exact_brep().boundary_loops(0.05)) if hasattr(domain, "exact_brep") else p[:0]
+    p = np.concatenate([p, rim])
+    expected = domain.sdf(p) <= 0
+    if isinstance(domain, Circle):
+        assert test is None  # a closed formula: the plain call is as fast
+        return
+    assert test is not None
+    assert np.array_equal(test(p), expected)
