@@ -122,3 +122,45 @@ def test_injection_repeats_bit_for_bit(domain) -> None:
 
     d, _ = cKDTree(allp).query(runs[0], k=2)
     assert np.all(d[:, 1] >= MERGE * 0.5 * h(runs[0]).min() * 0.999)
+
+
+def _reference_runs(points, lengths, closed, keep):
+    """Runs of kept points per chain, in plain Python: a closed chain that lost a point starts
+    right after its first lost point."""
+    out, pos = [], 0
+    for size, ring in zip(lengths, closed, strict=True):
+        idx = list(range(pos, pos + size))
+        pos += size
+        lost = [k for k in idx if not keep[k]]
+        if not lost:
+            if idx:
+                out.append(([points[k] for k in idx], bool(ring)))
+            continue
+        if ring:
+            cut = idx.index(lost[0]) + 1
+            idx = idx[cut:] + idx[:cut]
+        run: list = []
+        for k in idx + [None]:
+            if k is not None and keep[k]:
+                run.append(points[k])
+            elif run:
+                out.append((run, False))
+                run = []
+    return out
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), keep_rate=st.sampled_from([0.2, 0.7, 0.95, 1.0]))
+def test_survivors_match_plain_runs(seed: int, keep_rate: float) -> None:
+    rng = np.random.default_rng(seed)
+    lengths = rng.integers(0, 9, int(rng.integers(1, 6)))
+    closed = rng.random(len(lengths)) < 0.5
+    points = rng.random((int(lengths.sum()), 2))
+    keep = rng.random(len(points)) < keep_rate
+    start = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+    pts, got_len, got_closed = kern.survivors(points, start, closed, keep)
+    expected = _reference_runs(points, lengths, closed, keep)
+    assert got_len.tolist() == [len(r) for r, _ in expected]
+    assert got_closed.tolist() == [c for _, c in expected]
+    flat = np.array([p for r, _ in expected for p in r]).reshape(-1, 2)
+    assert np.array_equal(pts, flat)

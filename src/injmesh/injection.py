@@ -82,14 +82,6 @@ class Front:
     def __len__(self) -> int:
         return len(self.points)
 
-    def successor(self) -> IntArray:
-        """Index of the next node in its chain, or -1 at the end of an open chain."""
-        idx = np.arange(len(self.points))
-        last = self.start[1:][self.chain] - 1
-        first = self.start[:-1][self.chain]
-        wrap = np.where(self.closed[self.chain], first, -1)
-        return np.where(idx == last, wrap, idx + 1)
-
 
 def inject_nodes(
     domain: Domain,
@@ -166,102 +158,37 @@ def _h_inside(domain: Domain, h: SizeFn, q: FloatArray) -> FloatArray:
 
 def _inject(front: Front, domain: Domain, h: SizeFn) -> Front:
     """Apexes of the front edges plus arc points at reflex vertices, as new chains."""
+    from .kernels.inject import front_edges, interleave
+
     p = front.points
-    nxt = front.successor()
-    has_edge = nxt >= 0
-    e0 = np.flatnonzero(has_edge)
-    a, b = p[e0], p[nxt[e0]]
-    t = b - a
-    length = np.maximum(np.hypot(*t.T), 1e-300)
-    t = t / length[:, None]
-    normal = np.stack([-t[:, 1], t[:, 0]], axis=1)  # left of the edge: the unmeshed side
-    mid = 0.5 * (a + b)
+    first, mid, normal, fan_node, fan_angle = front_edges(p, front.start.astype(np.int64), front.closed,
+                                                          FAN_STEP)
     hm = _h_inside(domain, h, mid)
     apex = mid + HEIGHT * hm[:, None] * normal
     # Re-evaluate h at the apex so layers thin out or thicken with h.
     ha = 0.5 * (hm + _h_inside(domain, h, apex))
     apex = mid + HEIGHT * ha[:, None] * normal
-
-    # Reflex vertices: a node with both an incoming and an outgoing edge.
-    edge_of = np.full(len(p), -1)
-    edge_of[e0] = np.arange(len(e0))  # outgoing edge of node i
-    incoming = np.full(len(p), -1)
-    incoming[nxt[e0]] = np.arange(len(e0))
-    v = np.flatnonzero((edge_of >= 0) & (incoming >= 0))
-    t_in, t_out = t[incoming[v]], t[edge_of[v]]
-    # Interior angle on the left: 180 minus the signed turn from t_in to t_out.
-    turn = np.degrees(np.arctan2(t_in[:, 0] * t_out[:, 1] - t_in[:, 1] * t_out[:, 0],
-                                 np.sum(t_in * t_out, axis=1)))
-    theta = 180.0 - turn
-    m = np.maximum(np.floor((theta - 120.0) / FAN_STEP + 0.5).astype(int) - 1, 0)
-    fan_v = np.repeat(v, m)
-    fan_k = np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m) + 1
-    # Arc from the incoming apex direction (normal of e_in rotated back by 30 degrees) to the
-    # outgoing one, through the interior, in m + 1 equal steps.
-    n_in = normal[incoming[fan_v]]
-    start_ang = np.arctan2(n_in[:, 1], n_in[:, 0]) + np.radians(30.0)
-    sweep = np.radians(np.repeat(theta, m) - 120.0)
-    ang = start_ang - fan_k / (np.repeat(m, m) + 1) * sweep
-    hv = h(p[fan_v])
-    fan = p[fan_v] + hv[:, None] * np.stack([np.cos(ang), np.sin(ang)], axis=1)
-
-    # Order: for node i of a chain, its fan points (key i, then k) then its outgoing apex.
-    key_apex = e0.astype(float) + 0.999
-    key_fan = fan_v + fan_k / (m.max() + 2 if len(m) else 2)
-    keys = np.concatenate([key_apex, key_fan])
-    pts = np.concatenate([apex, fan])
-    chain = front.chain[np.concatenate([e0, fan_v])]
-    order = np.lexsort((keys, chain))
-    pts, chain = pts[order], chain[order]
-    lengths = np.bincount(chain, minlength=len(front.lengths))
+    hv = h(p[fan_node])
+    fan = p[fan_node] + hv[:, None] * np.stack([np.cos(fan_angle), np.sin(fan_angle)], axis=1)
+    pts, lengths = interleave(front.chain.astype(np.int64), len(front.lengths), first, apex, fan_node, fan)
     return Front(pts, lengths, front.closed.copy())
 
 
 def _respace(front: Front, domain: Domain, h: SizeFn) -> Front:
     """Re-lay every chain at equal h-length, ``round(S)`` segments (Step 2 of the module doc)."""
+    from .kernels.inject import chain_polylines, relay
+
     front = _drop_empty(front)
     if len(front) == 0:
         return front
-    p = front.points
-    n_chain = len(front.lengths)
+    start = front.start.astype(np.int64)
     # Polyline per chain with the closing vertex repeated for closed chains.
-    close = front.closed & (front.lengths > 0)
-    last = front.start[1:] - 1
-    rep_idx = np.concatenate([np.arange(len(p)), front.start[:-1][close]])
-    rep_key = np.concatenate([np.arange(len(p), dtype=float), last[close] + 0.5])
-    order = np.argsort(rep_key, kind="stable")
-    poly = p[rep_idx[order]]
-    pchain = np.concatenate([front.chain, np.flatnonzero(close)])[order]
+    poly, pchain = chain_polylines(front.points, start, front.closed)
     same = pchain[1:] == pchain[:-1]
     seg = poly[1:] - poly[:-1]
     ds = np.where(same, np.hypot(*seg.T) / _h_inside(domain, h, 0.5 * (poly[1:] + poly[:-1])), 0.0)
-    s = np.concatenate([[0.0], np.cumsum(ds)])
-    pstart = np.flatnonzero(np.r_[True, ~same])
-    pend = np.r_[pstart[1:], len(poly)] - 1
-    total = s[pend] - s[pstart]
-
-    closed = front.closed
-    count = np.where(closed, np.rint(total), np.rint(total) + 1).astype(int)
-    count = np.maximum(count, 1)
-    collapse = closed & (total < 2.5)
-    count = np.where(collapse, 1, np.where(closed, np.maximum(count, 3), count))
-    count[front.lengths == 0] = 0
-    # Offsets make one global, strictly increasing abscissa over all chains.
-    offset = np.cumsum(np.r_[0.0, total[:-1] + 1.0])
-    gs = s - s[pstart][pchain] + offset[pchain]
-    piece = np.repeat(np.arange(n_chain), count)
-    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    denom = np.where(closed, count, np.maximum(count - 1, 1))[piece]
-    target = offset[piece] + k * total[piece] / denom
-    out = np.stack([np.interp(target, gs, poly[:, 0]), np.interp(target, gs, poly[:, 1])], axis=1)
-    if collapse.any():
-        cen = np.zeros((n_chain, 2))
-        np.add.at(cen, front.chain, p)
-        cen /= np.maximum(front.lengths, 1)[:, None]
-        sel = collapse[piece]
-        out[sel] = cen[piece[sel]]
-    closed_out = closed & ~collapse
-    return Front(out, count, closed_out)
+    out, count, closed = relay(poly, pchain, ds, front.closed, front.points, start)
+    return Front(out, count, closed)
 
 
 class _Proximity:
@@ -336,34 +263,10 @@ def _admissible(domain: Domain, h: SizeFn, q: FloatArray, grid: _Proximity) -> B
 
 
 def _survivors(front: Front, keep: BoolArray) -> Front:
-    """Runs of consecutive kept points become the next chains."""
-    n = len(front)
-    idx = np.arange(n)
-    chain = front.chain
-    first = front.start[:-1][chain]
-    # Rotate closed chains with a gap so that no run wraps around the chain's start.
-    removed_any = np.zeros(len(front.lengths), dtype=bool)
-    np.logical_or.at(removed_any, chain, ~keep)
-    rot = np.zeros(len(front.lengths), dtype=int)
-    gap = front.closed & removed_any & (front.lengths > 0)
-    if gap.any():
-        # Rotate so the chain starts right after its first removed point.
-        first_removed = np.full(len(front.lengths), n)
-        np.minimum.at(first_removed, chain[~keep], idx[~keep])
-        rot[gap] = first_removed[gap] - front.start[:-1][gap] + 1
-    L = front.lengths[chain]
-    pos = (idx - first - rot[chain]) % np.maximum(L, 1)
-    order = np.lexsort((pos, chain))
-    pts, kp, ch = front.points[order], keep[order], chain[order]
-    stays_closed = front.closed & ~removed_any
-    # A run starts at a kept point whose predecessor (same chain) is not kept.
-    prev_kept = np.r_[False, kp[:-1] & (ch[1:] == ch[:-1])]
-    run_start = kp & ~prev_kept
-    run_id = np.cumsum(run_start) - 1
-    pts, run_id = pts[kp], run_id[kp]
-    lengths = np.bincount(run_id) if len(run_id) else np.zeros(0, dtype=int)
-    run_chain = ch[kp][np.r_[0, np.cumsum(lengths)[:-1]]] if len(lengths) else np.zeros(0, int)
-    closed = stays_closed[run_chain] if len(lengths) else np.zeros(0, dtype=bool)
+    """Runs of consecutive kept points become the next chains (:func:`kernels.inject.survivors`)."""
+    from .kernels.inject import survivors
+
+    pts, lengths, closed = survivors(front.points, front.start.astype(np.int64), front.closed, keep)
     return Front(pts, lengths, closed)
 
 
