@@ -11,8 +11,9 @@ paper cases, the wall seconds of each set-up stage as ``generate`` runs them:
 - ``injection``: Step 2 (``inject_nodes``).
 
 Every figure is the best of ``--repeat`` calls after one warm-up call (compilation out of the
-figure; the first call's time is printed beside it).  Shared, loaded machine: compare figures
-within one run.
+figure; the first call's wall time is printed beside it), as CPU seconds of this process
+(``time.process_time``: the stages are single-threaded, and CPU time is what a loaded shared
+machine distorts least) and, in a second table, wall seconds.  Compare figures within one run.
 
 Usage::
 
@@ -45,35 +46,51 @@ from _bench import machine_note, markdown_table  # noqa: E402
 STAGES = ("clean", "size", "boundary", "injection")
 
 
-def stages(domain: Any, size: Any) -> tuple[dict[str, float], int]:
-    """Wall seconds of each set-up stage of ``generate``, and the number of nodes placed."""
-    sec: dict[str, float] = {}
-    t = time.perf_counter()
+class _Clock:
+    """Wall and CPU seconds of successive stages."""
+
+    def __init__(self) -> None:
+        self.wall: dict[str, float] = {}
+        self.cpu: dict[str, float] = {}
+        self.t, self.c = time.perf_counter(), time.process_time()
+
+    def lap(self, stage: str) -> None:
+        t, c = time.perf_counter(), time.process_time()
+        self.wall[stage], self.cpu[stage] = t - self.t, c - self.c
+        self.t, self.c = t, c
+
+
+def stages(domain: Any, size: Any) -> tuple[dict[str, float], dict[str, float], int]:
+    """Wall and CPU seconds of each set-up stage of ``generate``, and the number of nodes placed."""
+    clock = _Clock()
     dom = as_domain(domain)
     h = as_size_function(size)
     dom, _ = _clean(dom, h)
-    sec["clean"] = time.perf_counter() - t
-    t = time.perf_counter()
+    clock.lap("clean")
     _, follow = _target_size(dom, h, 2.0, 0.2)
-    sec["size"] = time.perf_counter() - t
+    clock.lap("size")
     follow = _capped(follow, dom.diameter)
-    t = time.perf_counter()
     bnd = mesh_boundary(dom, follow, np.empty((0, 2)), max_nodes=10**8)
-    sec["boundary"] = time.perf_counter() - t
-    t = time.perf_counter()
+    clock.lap("boundary")
     injected = inject_nodes(dom, follow, bnd, bnd.points, max_nodes=10**8)
-    sec["injection"] = time.perf_counter() - t
-    return sec, len(bnd.points) + len(injected)
+    clock.lap("injection")
+    return clock.wall, clock.cpu, len(bnd.points) + len(injected)
 
 
-def best(fn: Callable[[], tuple[dict[str, float], int]], repeat: int) -> tuple[dict[str, float], float, int]:
-    """Per-stage best of ``repeat`` calls after a warm-up, the warm-up's total, and N."""
-    first, n = fn()
-    out = {k: math.inf for k in STAGES}
+Timing = tuple[dict[str, float], dict[str, float], float, int]
+
+
+def best(fn: Callable[[], tuple[dict[str, float], dict[str, float], int]], repeat: int) -> Timing:
+    """Per-stage best wall and CPU seconds of ``repeat`` calls after a warm-up, the warm-up's
+    wall total, and N."""
+    first, _, n = fn()
+    wall = {k: math.inf for k in STAGES}
+    cpu = {k: math.inf for k in STAGES}
     for _ in range(repeat):
-        sec, n = fn()
-        out = {k: min(out[k], sec[k]) for k in STAGES}
-    return out, sum(first.values()), n
+        w, c, n = fn()
+        wall = {k: min(wall[k], w[k]) for k in STAGES}
+        cpu = {k: min(cpu[k], c[k]) for k in STAGES}
+    return wall, cpu, sum(first.values()), n
 
 
 def row(label: str, sec: dict[str, float], first: float, n: int, unit: float, fmt: str) -> list[str]:
@@ -89,24 +106,31 @@ def main() -> None:
     ap.add_argument("--skip-cases", action="store_true", help="leave out the paper's six cases")
     args = ap.parse_args()
     print(f"_{machine_note()}_\n")
-    rows = []
+    results: list[tuple[str, Timing]] = []
     for s in args.sizes.split(","):
         n = float(s)
         h = math.sqrt(2.0 / (math.sqrt(3.0) * n))
         repeat = args.repeat if n < 5e5 else 1
-        sec, first, got = best(lambda h=h: stages(injmesh.Rectangle((0, 0), (1, 1)), h), repeat)
-        rows.append(row(f"unit square {s}", sec, first, got, 1.0, ".3f"))
-    head = ["case", "N"] + [f"{k} s" for k in STAGES] + ["total s", "first call s"]
-    print(markdown_table(head, rows))
-    if args.skip_cases:
-        return
-    rows = []
-    for name, case in CASES.items():
-        sec, first, got = best(lambda case=case: stages(case.geometry, case.size), max(args.repeat, 5))
-        rows.append(row(name, sec, first, got, 1e3, ".2f"))
-    print()
-    head = ["paper case", "N"] + [f"{k} ms" for k in STAGES] + ["total ms", "first call ms"]
-    print(markdown_table(head, rows))
+        square = injmesh.Rectangle((0, 0), (1, 1))
+        results.append((f"unit square {s}", best(lambda h=h, sq=square: stages(sq, h), repeat)))
+    if not args.skip_cases:
+        for name, case in CASES.items():
+            timing = best(lambda case=case: stages(case.geometry, case.size), max(args.repeat, 5))
+            results.append((name, timing))
+    for kind, pick in (("CPU", 1), ("wall", 0)):
+        for paper in (False, True):
+            rows = []
+            for label, timing in results:
+                if label.startswith("unit square") == paper:
+                    continue
+                unit, fmt = (1e3, ".2f") if paper else (1.0, ".3f")
+                rows.append(row(label, timing[pick], timing[2], timing[3], unit, fmt))
+            if not rows:
+                continue
+            u = "ms" if paper else "s"
+            head = ["paper case" if paper else "case", "N"] + [f"{k} {kind} {u}" for k in STAGES]
+            print(markdown_table(head + [f"total {kind} {u}", f"first call wall {u}"], rows))
+            print()
 
 
 if __name__ == "__main__":
