@@ -29,6 +29,10 @@ Thinner features are missed.  An isolated medial-axis
 point (the centre of a square, where four walls are equidistant) may be seen or not depending on
 how the grid falls; missing one only raises the feature size, and only where the region is thick.
 
+:func:`effective_size` first asks :func:`thick_everywhere` (the exact boundary alone, no
+grid) whether any two walls face each other within a few h; where none do, the grid below is
+not needed.
+
 Cost: one signed-distance call on the grid, exact nearest boundary points (a k-d tree over the
 boundary polylines) for the nodes next to the boundary and for the medial-axis candidates, two
 Euclidean distance transforms (scipy.ndimage); the other nodes take the nearest point of their
@@ -557,7 +561,10 @@ def effective_size(
     SizeFunction
         When neither the feature size nor the gradation limit changes h at any grid node, h
         itself restricted to the domain (:meth:`SizeFunction.restricted`), so a size that needs
-        no correction is followed exactly.  Otherwise the corrected sizes on the background grid
+        no correction is followed exactly.  (A domain with an exact boundary on which no two
+        walls face each other within about ``layers * h``, :func:`thick_everywhere`, skips the
+        feature-size grid; with a uniform size it needs no grid at all.)  Otherwise the
+        corrected sizes on the background grid
         (a :class:`GriddedSize`); if the grid had to be coarser than h_min / 4 (``max_cells``),
         the minimum of that and the restricted h, so no detail of h is lost.
 
