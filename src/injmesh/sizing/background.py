@@ -265,6 +265,12 @@ def densify(loop: FloatArray, step: float) -> FloatArray:
 
 def probe_min(h: SizeFunction, domain: Domain) -> float:
     """The smallest size at a coarse sample of the domain: nodes inside and boundary points."""
+    return probe_range(h, domain)[0]
+
+
+def probe_range(h: SizeFunction, domain: Domain) -> tuple[float, float]:
+    """The smallest and largest size at a coarse sample of the domain (see :func:`probe_min`),
+    both clamped to the domain's diameter."""
     x0, y0, x1, y1 = domain.bbox
     step = max(x1 - x0, y1 - y0) / PROBE_CELLS
     inner, rim = np.empty((0, 2)), np.empty((0, 2))
@@ -282,9 +288,10 @@ def probe_min(h: SizeFunction, domain: Domain) -> float:
         raise GeometryError("the domain is empty: no node of the probe grid inside, no boundary curve")
     # The grid's inside nodes are inside (d <= 0): h is asked there directly; the boundary
     # points (chords of curves may lie just outside) go through the restriction.
-    lows = [float(np.min(h(inner))) if len(inner) else np.inf,
-            float(np.min(h.restricted(domain)(rim))) if len(rim) else np.inf]
-    return min(min(lows), float(domain.diameter))
+    vals = np.concatenate([h(inner) if len(inner) else np.empty(0),
+                           h.restricted(domain)(rim) if len(rim) else np.empty(0)])
+    diameter = float(domain.diameter)
+    return min(float(vals.min()), diameter), min(float(vals.max()), diameter)
 
 
 def sample_size(h: SizeFunction, domain: Domain, grid: Background, rate: float = 0.0) -> FloatArray:
@@ -320,17 +327,19 @@ def sampled_grid(
     max_cells: int,
     rate: float = 0.0,
     max_spacing: float = np.inf,
+    h_min: float | None = None,
 ) -> tuple[Background, FloatArray]:
     """The background grid for ``h`` on ``domain`` and h sampled on it (see the module docstring).
 
     Without ``spacing`` the grid follows ``min(h_min / CELLS_PER_H, max_spacing)`` with ``h_min``
     estimated on a coarse probe; when the grid then finds sizes below half that estimate, it is
-    refined once.
+    refined once.  ``h_min`` is the probe's estimate when the caller already has it.
     """
     if spacing is not None:
         grid = resolving_background(domain, float(spacing), max_cells, explicit=True)
         return grid, sample_size(h, domain, grid, rate)
-    h_min = probe_min(h, domain)
+    if h_min is None:
+        h_min = probe_min(h, domain)
     grid = resolving_background(domain, min(h_min / CELLS_PER_H, max_spacing), max_cells, explicit=False)
     values = sample_size(h, domain, grid, rate)
     finer = float(values.min())

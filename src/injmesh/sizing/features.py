@@ -58,6 +58,7 @@ from .background import (
     exact_boundary,
     fit_spacing,
     make_background,
+    probe_range,
     resolving_background,
     sample_size,
     sampled_grid,
@@ -90,6 +91,8 @@ THICK_PAD = 2.0
 #: Walls face each other when the direction between them is within this many degrees more
 #: than ``corner_angle`` of both inward normals (slack for curved walls sampled by chords).
 FACING_SLACK = 10.0
+#: The sizes a coarse probe finds are trusted up to this factor (checked on the grid after).
+PROBE_SLACK = 1.5
 #: Boundary vertices per tested width, and the most vertices the test may use.
 THICK_STEPS = 4
 THICK_MAX_VERTICES = 1_000_000
@@ -591,19 +594,30 @@ def effective_size(
         # A uniform size has no gradient to limit, and where no two walls are closer than a
         # few h the feature size is above it everywhere: h itself, with no grid at all.
         return h.restricted(dom)
-    grid, h0 = sampled_grid(
-        h, dom, spacing, int(max_cells), 0.0 if g is None else g, dom.diameter / FEATURE_CELLS
-    )
+    rate_ = 0.0 if g is None else g
+    grid: Background | None = None
+    thick = False
+    if spacing is None and n_layers is not None and exact_boundary(dom) is not None:
+        # Thick everywhere by the probe's sizes (the bound checked on the grid below): then
+        # the grid only has to resolve h (h_min / 4), not thin parts (diameter / 256).
+        lo, hi = probe_range(h, dom)
+        bound = PROBE_SLACK * hi
+        if _thick(dom, bound, n_layers, angle, lo / CELLS_PER_H, h.restricted(dom)):
+            grid, h0 = sampled_grid(h, dom, None, int(max_cells), rate_, h_min=lo)
+            thick = float(h0[grid.inside].max()) <= bound and grid.spacing >= lo / CELLS_PER_H
+            grid = grid if thick else None
+    if grid is None:
+        grid, h0 = sampled_grid(h, dom, spacing, int(max_cells), rate_, dom.diameter / FEATURE_CELLS)
     inside = grid.inside
     h_max = float(h0[inside].max()) if inside.any() else np.inf
-    if n_layers is None or _thick(dom, h_max, n_layers, angle, grid.spacing, h.restricted(dom)):
+    if thick or n_layers is None or _thick(dom, h_max, n_layers, angle, grid.spacing, h.restricted(dom)):
         # No wall faces another within a few of the largest h: the feature size changes nothing.
         target = h0
     else:
         if spacing is None:
             finer = refine_for_gaps(dom, grid, angle, int(max_cells))
             if finer is not grid:
-                grid, h0 = finer, sample_size(h, dom, finer, 0.0 if g is None else g)
+                grid, h0 = finer, sample_size(h, dom, finer, rate_)
         fs = feature_grid(dom, grid, 2.0 * grid.spacing if floor is None else floor, angle)
         target = np.minimum(h0, fs / n_layers)
     out = target if g is None else limit_grid(target, grid, g)
