@@ -602,8 +602,12 @@ def effective_size(
         # the grid only has to resolve h (h_min / 4), not thin parts (diameter / 256).
         lo, hi = probe_range(h, dom)
         bound = PROBE_SLACK * hi
-        if _thick(dom, bound, n_layers, angle, lo / CELLS_PER_H, h.restricted(dom)):
+        # The margin is that of the grid the feature size would be computed on.
+        fine = min(lo / CELLS_PER_H, dom.diameter / FEATURE_CELLS)
+        if _thick(dom, bound, n_layers, angle, fine, h.restricted(dom)):
             grid, h0 = sampled_grid(h, dom, None, int(max_cells), rate_, h_min=lo)
+            # A grid refined below the probe's h_min / 4 (smaller sizes, a thin domain) is
+            # a case for the full computation.
             thick = float(h0[grid.inside].max()) <= bound and grid.spacing >= lo / CELLS_PER_H
             grid = grid if thick else None
     if grid is None:
