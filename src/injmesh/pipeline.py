@@ -387,8 +387,7 @@ def _target_size(
         target = h.restricted(domain)
     else:
         try:
-            target = effective_size(h, domain, layers=feature_layers if feature_layers is not None
-                                    else np.inf, rate=gradation)
+            target = effective_size(h, domain, layers=feature_layers, rate=gradation)
         except GeometryError:
             # The background grid saw no boundary: let the domain's own check say why (empty,
             # or spilling out of its bbox), else report what the grid found.
