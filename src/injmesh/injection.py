@@ -149,6 +149,9 @@ def _starts_with(a: FloatArray, b: FloatArray) -> bool:
 
 def _h_inside(domain: Domain, h: SizeFn, q: FloatArray) -> FloatArray:
     """h at ``q``, taken at the boundary projection for points outside the domain."""
+    value = getattr(h, "constant", None)
+    if value is not None:  # a constant h needs no domain query (one per call saved)
+        return np.full(len(q), float(value))
     out = domain.sdf(q) > 0
     if out.any():
         q = q.copy()
