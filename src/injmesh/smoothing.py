@@ -225,7 +225,7 @@ class _Relaxation:
 
     def _set_triangles(self, tri: IntArray) -> None:
         """Take a new triangulation (from scratch): its neighbour table for the flips."""
-        t32 = np.ascontiguousarray(tri, dtype=np.int32)
+        t32 = np.ascontiguousarray(tri[np.argsort(tri.min(axis=1), kind="stable")], dtype=np.int32)
         self._t32 = t32
         self._nbr = _neighbours32(t32, len(self.p))
         self._con = np.zeros(t32.shape, dtype=np.uint8)
@@ -415,8 +415,18 @@ def smooth(
     if smoothing == "attractive":
         slide = slide[:0]  # the paper keeps boundary nodes where Step 1 put them
     wall = np.zeros((0, 2), dtype=np.intp) if walls is None else np.asarray(walls, np.intp)
-    relax = _Relaxation(domain, h, p, n_fixed, slide, wall, callback, cap)
+    # The free nodes renumbered along a Hilbert curve, and the triangles listed by their lowest
+    # node (``_set_triangles``): mesh neighbours are then near each other in memory, which the
+    # kernels' gathers (forces, neighbour lists, flips) need at a million nodes.  Injection
+    # numbers nodes front by front, and the triangulation lists triangles in the randomized
+    # order of insertion.
     kept = np.arange(len(p))
+    if len(p) - n_fixed > 1:
+        from .kernels.delaunay import hilbert_order
+
+        kept[n_fixed:] = n_fixed + hilbert_order(p[n_fixed:])
+        p = p[kept]
+    relax = _Relaxation(domain, h, p, n_fixed, slide, wall, callback, cap)
     if cap == 0 or len(p) == n_fixed:
         converged = True
     elif smoothing == "attractive":
