@@ -9,7 +9,7 @@ import pytest
 
 from conftest import CASE_NAMES, FORMS
 from injmesh import Circle, NodeBudgetError, Polygon, Rectangle
-from injmesh.boundary import BoundaryMesh, estimate_nodes, mesh_boundary
+from injmesh.boundary import BoundaryMesh, corner_size, corner_spacing, estimate_nodes, mesh_boundary
 from injmesh.cases import CASES
 from injmesh.geometry import as_domain
 from injmesh.progress import Progress
@@ -162,3 +162,45 @@ def test_estimate_nodes_is_scale_free() -> None:
     h2 = estimate_nodes(Circle((0, 0), 1000), as_size_function(100.0))
     assert h2[0] == pytest.approx(1000 * h1[0])
     assert h2[1] == pytest.approx(h1[1], rel=1e-9)
+
+
+def _serrated(teeth: int = 12, depth: float = 0.04) -> Polygon:
+    """A unit square whose top edge is a saw of ``teeth`` teeth (corners 1/teeth apart)."""
+    x = np.linspace(1.0, 0.0, 2 * teeth + 1)
+    y = 1.0 + depth * (np.arange(2 * teeth + 1) % 2)
+    return Polygon(np.concatenate([[(0.0, 0.0), (1.0, 0.0)], np.stack([x, y], axis=1)]))
+
+
+def test_corner_spacing_is_the_distance_to_the_next_fixed_junction() -> None:
+    pts, spacing = corner_spacing(_serrated(teeth=10), as_size_function(0.2))
+    # Every saw vertex has a flank next to it; the square's bottom corners have two 1.0 arms.
+    assert len(pts) == 23
+    flank = math.hypot(0.05, 0.04)
+    bottom = pts[:, 1] < 0.5
+    assert np.allclose(spacing[bottom], 1.0) and np.allclose(spacing[~bottom], flank)
+
+
+def test_corner_size_lowers_h_only_near_close_corners() -> None:
+    dom, h = _serrated(teeth=10), as_size_function(0.2)
+    hc = corner_size(dom, h, rate=0.25)
+    assert hc(np.array([[0.5, 0.2]]))[0] == pytest.approx(0.2)
+    near = hc(np.array([[0.5, 0.99], [0.5, 0.9]]))
+    assert np.all(near < 0.1) and near[0] < near[1]
+    # Corners no closer than h change nothing: h itself comes back.
+    assert corner_size(Rectangle((0, 0), (1, 1)), h) is h
+    assert corner_size(Circle((0, 0), 1), h) is h
+
+
+def test_close_corners_are_nodes_of_well_shaped_triangles() -> None:
+    import warnings
+
+    import injmesh
+
+    dom = _serrated()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mesh = injmesh.generate(dom, 0.25)
+    gap = mesh.points[:, None, :] - dom.corners()[None, :, :]
+    assert np.all(np.hypot(gap[..., 0], gap[..., 1]).min(axis=0) < 1e-9)
+    # Without the corner size the saw's flanks (0.06 long) meet h = 0.25 triangles: q 0.49.
+    assert mesh.quality().min() > 0.65

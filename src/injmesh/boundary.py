@@ -39,6 +39,7 @@ from .errors import NodeBudgetError
 from .geometry import BRep, Domain, GeometryError
 from .geometry.tracing import grid_spacing
 from .progress import Callback, report
+from .sizing import SizeFunction
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -240,7 +241,7 @@ def _resolved_vertices(domain: Domain, h: SizeFn) -> FloatArray:
     the domain.  Only where the vertices are closer than h (a digitised curve) does the boundary
     treat them as samples of a smooth curve.
     """
-    brep = domain if isinstance(domain, BRep) else getattr(domain, "exact_brep", lambda: None)()
+    brep = _exact_brep(domain)
     if brep is None:
         return np.empty((0, 2))
     pts, turn, before, after = brep.junctions()
@@ -256,6 +257,115 @@ def _resolved_vertices(domain: Domain, h: SizeFn) -> FloatArray:
 #: at least VERTEX_ARM h long.
 VERTEX_ARM = 0.5
 VERTEX_TURN = 0.1
+
+#: Nearest corners whose cones :func:`corner_size` takes the minimum of, per point.
+CORNER_CONES = 6
+
+
+def _exact_brep(domain: Domain) -> BRep | None:
+    return domain if isinstance(domain, BRep) else getattr(domain, "exact_brep", lambda: None)()
+
+
+def corner_spacing(domain: Domain, h: SizeFn) -> tuple[FloatArray, FloatArray]:
+    """The junctions Step 1 holds fixed and, for each, the distance along the boundary to the
+    nearest other fixed junction of its loop.
+
+    Fixed junctions are the corners (turning more than ``CORNER_ANGLE`` degrees) and the
+    vertices :func:`_resolved_vertices` keeps.  A boundary segment cannot be longer than the
+    stretch between two fixed nodes, so this distance is the longest segment Step 1 can lay
+    next to the corner.
+
+    Returns
+    -------
+    points : (k, 2) array
+    spacing : (k,) array
+        Empty arrays for a domain without an exact boundary (an implicit d).
+    """
+    brep = _exact_brep(domain)
+    if brep is None:
+        return np.empty((0, 2)), np.empty(0)
+    pts, turn, before, after = brep.junctions()
+    start = brep.loop_start
+    fixed = np.abs(turn) > tol.CORNER_ANGLE
+    kink = ~fixed & (np.abs(turn) > VERTEX_TURN)
+    if kink.any():
+        arms = np.minimum(before[kink], after[kink])
+        fixed[np.flatnonzero(kink)] = arms >= VERTEX_ARM * h(pts[kink])
+    out_p, out_s = [], []
+    for k in range(len(start) - 1):
+        lo, hi = int(start[k]), int(start[k + 1])
+        # Arc length of each junction (the end of piece i) from the start of its loop.
+        arc = np.cumsum(before[lo:hi])
+        total = float(arc[-1])
+        idx = np.flatnonzero(fixed[lo:hi])
+        if len(idx) == 0:
+            continue
+        at = arc[idx]
+        gap = np.diff(np.r_[at, at[0] + total])  # to the next fixed junction
+        if len(idx) == 1:
+            gap = np.array([total])
+        out_p.append(pts[lo:hi][idx])
+        out_s.append(np.minimum(gap, np.roll(gap, 1)))
+    if not out_p:
+        return np.empty((0, 2)), np.empty(0)
+    return np.concatenate(out_p), np.concatenate(out_s)
+
+
+class _CornerCap:
+    """``min(h(p), min_c (s_c + rate |p - c|))`` over the ``CORNER_CONES`` nearest corners c."""
+
+    def __init__(self, h: SizeFn, corners: FloatArray, spacing: FloatArray, rate: float) -> None:
+        self.h, self.corners, self.spacing, self.rate = h, corners, spacing, rate
+        self.s_min = float(spacing.min())
+        self.tree = cKDTree(corners)
+
+    def __call__(self, p: FloatArray) -> FloatArray:
+        hp = self.h(p)
+        if len(p) == 0:
+            return hp
+        k = min(CORNER_CONES, len(self.corners))
+        # Corners farther than this cannot lower h anywhere in p: the query skips them.
+        reach = (float(hp.max()) - self.s_min) / self.rate
+        dist, near = self.tree.query(p, k=k, distance_upper_bound=reach)
+        dist, near = dist.reshape(len(p), k), near.reshape(len(p), k)
+        seen = near < len(self.corners)  # a miss is index len(corners), distance inf
+        s = self.spacing[np.minimum(near, len(self.corners) - 1)]
+        cone = np.where(seen, s + self.rate * dist, np.inf)
+        return np.minimum(hp, cone.min(axis=1))
+
+
+def corner_size(domain: Domain, h: SizeFunction, rate: float = 0.2) -> SizeFunction:
+    """h lowered near corners closer together than h, graded back at slope ``rate``.
+
+    Every corner of a polygon is a node (Step 1 fixes it), so where corners are closer than h
+    (a digitised coastline, a detailed outline) the boundary segments are as short as the
+    corners' spacing whatever h says.  Interior nodes at h next to them would make fans of
+    slivers; the size instead becomes ``min(h, s_c + rate |p - c|)`` over the corners c, with
+    s_c the distance to c's nearest fixed neighbour along the boundary (:func:`corner_spacing`),
+    a cone that Eq. 3.1-3.3 and the injection then follow.
+
+    Returns
+    -------
+    SizeFunction
+        ``h`` itself when no corner is closer to its neighbours than h there.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from injmesh import Polygon
+    >>> from injmesh.sizing import as_size_function
+    >>> zigzag = Polygon([(0, 0), (1, 0), (1, 1), (0.55, 1.02), (0.5, 1), (0.45, 1.02), (0, 1)])
+    >>> hc = corner_size(zigzag, as_size_function(0.2))
+    >>> hc(np.array([[0.5, 1.0], [0.5, 0.2]])).round(3).tolist()
+    [0.054, 0.2]
+    """
+    pts, spacing = corner_spacing(domain, h)
+    if len(pts) == 0:
+        return h
+    low = spacing < h(pts) * (1.0 - 1e-9)
+    if not low.any():
+        return h
+    return SizeFunction(_CornerCap(h, pts[low], spacing[low], float(rate)))
 
 
 def _drop_tiny(loops: list[FloatArray], h: SizeFn) -> list[FloatArray]:

@@ -12,7 +12,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .boundary import BoundaryMesh, estimate_nodes, mesh_boundary
+from .boundary import BoundaryMesh, corner_size, estimate_nodes, mesh_boundary
 from .errors import ConvergenceWarning, MeshError
 from .geometry import Domain, GeometryError, as_domain
 from .geometry.base import as_points
@@ -152,7 +152,7 @@ def generate(
         if smoothing not in ("hybrid", "attractive"):
             raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
         dom, cleaning = _clean(dom, h)
-        target, follow = _target_size(dom, h, feature_layers, gradation)
+        target, follow = _target_size(dom, corner_size(dom, h, _rate(gradation)), feature_layers, gradation)
         mesh = _injection(dom, follow, fixed, max_iterations, int(max_nodes), smoothing, callback)
         mesh = replace(mesh, size=target, stats=replace(mesh.stats, cleaning=cleaning))
     else:
@@ -202,8 +202,9 @@ def initial_nodes(
     2
     """
     dom = as_domain(domain, bbox=bbox, fixed_points=fixed_points)
-    dom, _ = _clean(dom, as_size_function(size))
-    _, h = _target_size(dom, as_size_function(size), feature_layers, gradation)
+    h0 = as_size_function(size)
+    dom, _ = _clean(dom, h0)
+    _, h = _target_size(dom, corner_size(dom, h0, _rate(gradation)), feature_layers, gradation)
     fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
     bnd, seeds, injected = _place_nodes(dom, h, fixed, max_nodes, None)
     return np.concatenate([seeds, injected])
@@ -332,6 +333,11 @@ def _clean(domain: Domain, h: SizeFunction) -> tuple[Domain, dict[str, int]]:
         logger.info("geometry cleaned at %.3g: %s", CLEAN * h_min,
                     ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in changes.items()))
     return cleaned, changes
+
+
+def _rate(gradation: float | None) -> float:
+    """Slope at which sizes lowered next to close corners grow back (:func:`corner_size`)."""
+    return 0.2 if gradation is None else float(gradation)
 
 
 def _target_size(

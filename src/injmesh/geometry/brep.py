@@ -132,6 +132,11 @@ class BRep(Domain):
         return len(self._p0)
 
     @property
+    def loop_start(self) -> IntArray:
+        """Pieces ``loop_start[k]:loop_start[k + 1]`` form loop k (a copy)."""
+        return np.asarray(self._loop_start, dtype=np.intp).copy()
+
+    @property
     def n_loops(self) -> int:
         """Number of closed loops."""
         return len(self._loop_start) - 1
