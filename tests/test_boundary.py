@@ -204,3 +204,22 @@ def test_close_corners_are_nodes_of_well_shaped_triangles() -> None:
     assert np.all(np.hypot(gap[..., 0], gap[..., 1]).min(axis=0) < 1e-9)
     # Without the corner size the saw's flanks (0.06 long) meet h = 0.25 triangles: q 0.49.
     assert mesh.quality().min() > 0.65
+
+
+def test_nearest_segments_agree_with_brute_force() -> None:
+    from injmesh.boundary import _nearest_segments
+
+    rng = np.random.default_rng(1)
+    for trial in range(40):
+        n, m = int(rng.integers(3, 200)), int(rng.integers(1, 60))
+        a = rng.normal(size=(n, 2))
+        if trial % 2:
+            a[: n // 2] *= 0.01  # segments of very different lengths
+        ab = np.roll(a, -1, axis=0) - a
+        ab2 = np.einsum("ij,ij->i", ab, ab)
+        q = np.concatenate([rng.normal(size=(m, 2)), a[rng.integers(0, n, size=5)]])
+        t = np.clip(np.einsum("cnk,nk->cn", q[:, None, :] - a, ab) / ab2, 0, 1)
+        dist = np.hypot(*(q[:, None, :] - (a + t[..., None] * ab)).transpose(2, 0, 1))
+        seg, _, d = _nearest_segments(q, a, ab, ab2)
+        assert np.array_equal(d, dist.min(axis=1))
+        assert np.array_equal(dist[np.arange(len(q)), seg], d)

@@ -488,20 +488,7 @@ def _insert_corners(
         a, b = loop, np.roll(loop, -1, axis=0)
         ab = b - a
         ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
-        # Nearest segment of each corner, in chunks so that (corners x segments) work arrays
-        # stay near 4 million entries (a 20,000-vertex outline has as many corners).
-        seg = np.empty(len(corners), dtype=np.intp)
-        near_t = np.empty(len(corners))
-        near_d = np.empty(len(corners))
-        step = max(1, 4_000_000 // n)
-        for s0 in range(0, len(corners), step):
-            q = corners[s0 : s0 + step, None, :]
-            t = np.clip(np.einsum("cnk,nk->cn", q - a, ab) / ab2, 0, 1)
-            dist = np.hypot(*(q - (a + t[..., None] * ab)).transpose(2, 0, 1))
-            k = np.argmin(dist, axis=1)
-            rows = np.arange(len(k))
-            seg[s0 : s0 + step], near_t[s0 : s0 + step] = k, t[rows, k]
-            near_d[s0 : s0 + step] = dist[rows, k]
+        seg, near_t, near_d = _nearest_segments(corners, a, ab, ab2)
         # A corner belongs to this loop when the traced polyline passes close to it; traced
         # polylines cut corners by up to about a grid cell, hence the loose radius.
         mine = near_d <= max(on, 2.0 * float(np.sqrt(ab2.max())))
@@ -528,6 +515,50 @@ def _insert_corners(
     # Start each loop at a fixed vertex.
     first = int(np.argmax(fixed))
     return np.roll(loop, -first, axis=0), np.roll(fixed, -first)
+
+
+def _nearest_segments(
+    q: FloatArray, a: FloatArray, ab: FloatArray, ab2: FloatArray
+) -> tuple[IntArray, FloatArray, FloatArray]:
+    """Nearest segment ``a[i] -> a[i] + ab[i]`` of each point q: index (the lowest on a tie),
+    parameter t in [0, 1] of the foot, and distance.
+
+    O((n + k) log n) for n segments of similar lengths: a segment within distance D of q has
+    its midpoint within ``D + length / 2``, and D is at most the distance to the nearest segment
+    end, so only the segments whose midpoints lie in that ball are measured (k-d tree).
+    Segments more than ``4x`` the median length would make every ball large: they are measured
+    against every point, in chunks.
+    """
+    m = len(q)
+    length = np.sqrt(ab2)
+    long = length > 4.0 * float(np.median(length))
+    rows, cols = [np.empty(0, dtype=np.intp)], [np.empty(0, dtype=np.intp)]
+    short = np.flatnonzero(~long)
+    ends = np.concatenate([a[short], a[short] + ab[short]])
+    reach, _ = cKDTree(ends).query(q)
+    mid = a[short] + 0.5 * ab[short]
+    radius = (reach + 0.5 * float(length[short].max())) * (1 + 1e-9)  # rounding: keep the rim
+    balls = cKDTree(mid).query_ball_point(q, radius)
+    sizes = np.fromiter((len(b) for b in balls), dtype=np.intp, count=m)
+    rows.append(np.repeat(np.arange(m), sizes))
+    cols.append(short[np.concatenate([np.asarray(b, dtype=np.intp) for b in balls])])
+    lg = np.flatnonzero(long)
+    step = max(1, 4_000_000 // max(1, len(lg)))
+    for s0 in range(0, m if len(lg) else 0, step):
+        k = min(step, m - s0)
+        rows.append(np.repeat(np.arange(s0, s0 + k), len(lg)))
+        cols.append(np.tile(lg, k))
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    t = np.clip(np.einsum("ij,ij->i", q[r] - a[c], ab[c]) / ab2[c], 0, 1)
+    foot = a[c] + t[:, None] * ab[c]
+    dist = np.hypot(q[r, 0] - foot[:, 0], q[r, 1] - foot[:, 1])
+    # Per point: the smallest distance, then the lowest segment index (as np.argmin would).
+    order = np.lexsort((c, dist, r))
+    first = order[np.r_[True, r[order][1:] != r[order][:-1]]]
+    out_seg = np.zeros(m, dtype=np.intp)
+    out_t, out_d = np.zeros(m), np.full(m, np.inf)
+    out_seg[r[first]], out_t[r[first]], out_d[r[first]] = c[first], t[first], dist[first]
+    return out_seg, out_t, out_d
 
 
 def _refine(
