@@ -167,11 +167,12 @@ def mesh_boundary(
             raise ValueError(f"fixed point {tuple(fixed_points[i].tolist())} lies outside the domain")
         corners = np.concatenate([corners, fixed_points[np.abs(dfix) <= on]])
 
+    along = _tip_graded(domain, h)
     pts, fixed, loop_id = [], [], []
     for k, loop in enumerate(loops):
         p, f = _insert_corners(loop, corners, on, diam)
-        p, f = _refine(domain, h, p, f)
-        p, f = _select(domain, h, p, f)
+        p, f = _refine(domain, along, p, f)
+        p, f = _select(domain, along, p, f)
         pts.append(p)
         fixed.append(f)
         loop_id.append(np.full(len(p), k))
@@ -224,6 +225,56 @@ def _pin_wedges(h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_], nxt: IntArra
                 out[k] = True
                 k = int(step[k])
     return out
+
+
+class _TipGraded:
+    """h along the walls of sharp corners: ``min(h, r1_c)`` for ``r <= r1_c`` and
+    ``min(h, kappa_c r)`` beyond, within ``reach_c`` of each sharp corner c (r the distance to
+    c), h elsewhere."""
+
+    def __init__(self, h: SizeFn, tips: FloatArray, kappa: FloatArray, r1: FloatArray, reach: FloatArray):
+        self.h, self.tips, self.kappa, self.r1, self.reach = h, tips, kappa, r1, reach
+        self.tree = cKDTree(tips)
+
+    def __call__(self, p: FloatArray) -> FloatArray:
+        hp = self.h(p)
+        dist, k = self.tree.query(p, distance_upper_bound=float(self.reach.max()))
+        near = np.flatnonzero(np.isfinite(dist))
+        if len(near):
+            c, r = k[near], dist[near]
+            graded = np.where(r <= self.r1[c], self.r1[c], self.kappa[c] * r)
+            inside = r < self.reach[c]
+            hp[near] = np.where(inside, np.minimum(hp[near], graded), hp[near])
+        return hp
+
+
+def _tip_graded(domain: Domain, h: SizeFn) -> SizeFn:
+    """The size Step 1 follows: h, graded geometrically towards the tips of sharp corners.
+
+    Along the two walls of a corner of angle a the nodes then lie at distances growing by the
+    factor ``1 + 2 sin(a / 2)`` from the tip (the walls' separation at each node), on both
+    walls alike, so the strip between them is made of nearly square trapezoids (two triangles
+    of q ~ 0.8 each) down to the tip triangle, which is isosceles: the best the angle allows.
+    Without it the nodes near the tip lie at the floor of the feature size, and the strip
+    narrower than that floor is made of slivers as bad as the tip itself.  The first node lies
+    at ``r1 = h(tip)`` (the tip triangle, isosceles, has the angle's best q at any size), then
+    every segment is kappa times its distance from the tip, until that reaches h.
+    """
+    brep = _exact_brep(domain)
+    if brep is None:
+        return h
+    pts, turn, before, after = brep.junctions()
+    angle = 180.0 - turn  # interior angle: the domain is on the left
+    sharp = angle < SHARP_CORNER
+    if not sharp.any():
+        return h
+    tips, a = pts[sharp], np.radians(angle[sharp])
+    kappa = np.log1p(2.0 * np.sin(0.5 * a))
+    ht = h(tips)
+    r1 = ht
+    # Graded only along the walls: up to where kappa r reaches h, at most the shorter wall.
+    reach = np.minimum(ht / kappa, np.minimum(before[sharp], after[sharp]))
+    return _TipGraded(h, tips, kappa, r1, reach)
 
 
 #: Corners with an interior angle below this (degrees) are sharp: see :func:`_pin_wedges`.
@@ -611,9 +662,18 @@ def _select(
         count[np.argmax(span)] += 3 - count.sum()
     piece = np.repeat(np.arange(len(count)), count)
     k = np.arange(len(piece)) - np.repeat(np.cumsum(count) - count, count)
-    t = np.interp(s_start[piece] + k * span[piece] / count[piece], s, arc)
+    # Stretches that start or end at a sharp corner are laid in whole h-lengths from the corner
+    # (the rounding left at their other end), and those nodes are not balanced: both walls of
+    # the corner then carry nodes at the same distances from its tip (see _tip_graded).
+    tip = _sharp_vertices(p)
+    from_start = tip[fixed_idx[:-1]] & ~tip[fixed_idx[1:] % len(p)]
+    from_end = tip[fixed_idx[1:] % len(p)] & ~tip[fixed_idx[:-1]]
+    step = np.where((from_start | from_end) & (count > 1), 1.0, span / count)
+    offset = np.where(from_end & (count > 1), span - count * step, 0.0)
+    t = np.interp(s_start[piece] + offset[piece] + k * step[piece], s, arc)
     t[k == 0] = arc[fixed_idx[:-1]]
-    t = _balance(hv, t, k == 0, arc, total)
+    held = (k == 0) | (from_start[piece] & (k < count[piece] - 2)) | (from_end[piece] & (k > 2))
+    t = _balance(hv, t, held, arc, total)
     out = np.stack([np.interp(t, arc, closed[:, 0]), np.interp(t, arc, closed[:, 1])], axis=1)
     new_fixed = k == 0
     out[new_fixed] = p[fixed_idx[:-1]]
@@ -621,6 +681,14 @@ def _select(
     if free.any():
         out[free] = domain.project(out[free])  # Eq. 3.2
     return out, new_fixed
+
+
+def _sharp_vertices(p: FloatArray) -> NDArray[np.bool_]:
+    """Vertices of a closed polyline (domain on the left) whose interior angle is below
+    ``SHARP_CORNER``."""
+    u, w = np.roll(p, 1, axis=0) - p, np.roll(p, -1, axis=0) - p
+    angle = np.arctan2(w[:, 0] * u[:, 1] - w[:, 1] * u[:, 0], np.einsum("ij,ij->i", w, u)) % (2 * np.pi)
+    return np.asarray(angle < np.radians(SHARP_CORNER))
 
 
 def _balance(
