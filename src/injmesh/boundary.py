@@ -668,9 +668,11 @@ def _select(
     tip = _sharp_vertices(p)
     from_start = tip[fixed_idx[:-1]] & ~tip[fixed_idx[1:] % len(p)]
     from_end = tip[fixed_idx[1:] % len(p)] & ~tip[fixed_idx[:-1]]
-    step = np.where((from_start | from_end) & (count > 1), 1.0, span / count)
-    offset = np.where(from_end & (count > 1), span - count * step, 0.0)
-    t = np.interp(s_start[piece] + offset[piece] + k * step[piece], s, arc)
+    whole = (from_start | from_end) & (count > 1)
+    offset = np.where(from_end, span - count, 0.0)
+    equal = s_start[piece] + k * span[piece] / count[piece]
+    at = np.where(whole[piece], s_start[piece] + offset[piece] + k, equal)
+    t = np.interp(at, s, arc)
     t[k == 0] = arc[fixed_idx[:-1]]
     held = (k == 0) | (from_start[piece] & (k < count[piece] - 2)) | (from_end[piece] & (k > 2))
     t = _balance(hv, t, held, arc, total)
