@@ -325,6 +325,13 @@ def _clean(domain: Domain, h: SizeFunction) -> tuple[Domain, dict[str, int]]:
 
     GIS outlines carry vertices 1e-7 apart; meshed as given they make a duplicate node and a
     triangle of zero area.  Changes are logged and kept in ``mesh.stats.cleaning``.
+
+    Cleaning moves the boundary, by design and only within its tolerance of the outline's
+    *width*: a merged vertex moves by less than ``CLEAN * h_min``; a dropped spike (a part of
+    the outline narrower than that, one hundredth of the smallest element) disappears whatever
+    its length, since no triangle could fill it.  The mesh is a mesh of the cleaned domain, and
+    its output checks (:mod:`injmesh.validate`) hold against that domain; compare a mesh with
+    the raw outline only where ``mesh.stats.cleaning`` is empty.
     """
     h_min, _ = estimate_nodes(domain, h.restricted(domain))
     cleaned, report = domain.cleaned(CLEAN * h_min)
