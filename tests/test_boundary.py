@@ -9,7 +9,7 @@ import pytest
 
 from conftest import CASE_NAMES, FORMS
 from injmesh import Circle, NodeBudgetError, Polygon, Rectangle
-from injmesh.boundary import BoundaryMesh, estimate_nodes, mesh_boundary
+from injmesh.boundary import BoundaryMesh, corner_size, corner_spacing, estimate_nodes, mesh_boundary
 from injmesh.cases import CASES
 from injmesh.geometry import as_domain
 from injmesh.progress import Progress
@@ -162,3 +162,86 @@ def test_estimate_nodes_is_scale_free() -> None:
     h2 = estimate_nodes(Circle((0, 0), 1000), as_size_function(100.0))
     assert h2[0] == pytest.approx(1000 * h1[0])
     assert h2[1] == pytest.approx(h1[1], rel=1e-9)
+
+
+def _serrated(teeth: int = 12, depth: float = 0.04) -> Polygon:
+    """A unit square whose top edge is a saw of ``teeth`` teeth (corners 1/teeth apart)."""
+    x = np.linspace(1.0, 0.0, 2 * teeth + 1)
+    y = 1.0 + depth * (np.arange(2 * teeth + 1) % 2)
+    return Polygon(np.concatenate([[(0.0, 0.0), (1.0, 0.0)], np.stack([x, y], axis=1)]))
+
+
+def test_corner_spacing_is_the_distance_to_the_next_fixed_junction() -> None:
+    pts, spacing = corner_spacing(_serrated(teeth=10), as_size_function(0.2))
+    # Every saw vertex has a flank next to it; the square's bottom corners have two 1.0 arms.
+    assert len(pts) == 23
+    flank = math.hypot(0.05, 0.04)
+    bottom = pts[:, 1] < 0.5
+    assert np.allclose(spacing[bottom], 1.0) and np.allclose(spacing[~bottom], flank)
+
+
+def test_corner_size_lowers_h_only_near_close_corners() -> None:
+    dom, h = _serrated(teeth=10), as_size_function(0.2)
+    hc = corner_size(dom, h, rate=0.25)
+    assert hc(np.array([[0.5, 0.2]]))[0] == pytest.approx(0.2)
+    near = hc(np.array([[0.5, 0.99], [0.5, 0.9]]))
+    assert np.all(near < 0.1) and near[0] < near[1]
+    # Corners no closer than h change nothing: h itself comes back.
+    assert corner_size(Rectangle((0, 0), (1, 1)), h) is h
+    assert corner_size(Circle((0, 0), 1), h) is h
+
+
+def test_close_corners_are_nodes_of_well_shaped_triangles() -> None:
+    import warnings
+
+    import injmesh
+
+    dom = _serrated()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mesh = injmesh.generate(dom, 0.25)
+    gap = mesh.points[:, None, :] - dom.corners()[None, :, :]
+    assert np.all(np.hypot(gap[..., 0], gap[..., 1]).min(axis=0) < 1e-9)
+    # Without the corner size the saw's flanks (0.06 long) meet h = 0.25 triangles: q 0.49.
+    assert mesh.quality().min() > 0.65
+
+
+def test_nearest_segments_agree_with_brute_force() -> None:
+    from injmesh.boundary import _nearest_segments
+
+    rng = np.random.default_rng(1)
+    for trial in range(40):
+        n, m = int(rng.integers(3, 200)), int(rng.integers(1, 60))
+        a = rng.normal(size=(n, 2))
+        if trial % 2:
+            a[: n // 2] *= 0.01  # segments of very different lengths
+        ab = np.roll(a, -1, axis=0) - a
+        ab2 = np.einsum("ij,ij->i", ab, ab)
+        q = np.concatenate([rng.normal(size=(m, 2)), a[rng.integers(0, n, size=5)]])
+        t = np.clip(np.einsum("cnk,nk->cn", q[:, None, :] - a, ab) / ab2, 0, 1)
+        dist = np.hypot(*(q[:, None, :] - (a + t[..., None] * ab)).transpose(2, 0, 1))
+        seg, _, d = _nearest_segments(q, a, ab, ab2)
+        assert np.array_equal(d, dist.min(axis=1))
+        assert np.array_equal(dist[np.arange(len(q)), seg], d)
+
+
+@pytest.mark.parametrize("angle", [6.0, 15.0])
+def test_sharp_tip_strip_is_well_shaped(angle: float) -> None:
+    import warnings
+
+    import injmesh
+
+    a = math.radians(angle)
+    # A wedge of the given angle at the origin, closed by a wide body.
+    tip = Polygon([(0, 0), (2 * math.cos(a / 2), -2 * math.sin(a / 2)), (2.5, -0.6), (2.5, 0.6),
+                   (2 * math.cos(a / 2), 2 * math.sin(a / 2))])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mesh = injmesh.generate(tip, 0.1)
+    q = mesh.quality()
+    at_tip = np.any(np.hypot(*mesh.points[mesh.triangles].transpose(2, 0, 1)) < 1e-12, axis=1)
+    # The tip triangle is isosceles (the best the angle allows); the strip behind it is not
+    # pushed into slivers: q away from the tip as in a thick region.
+    best = 8 * math.sin(a / 2) * math.sin((math.pi - a) / 4) ** 2
+    assert at_tip.sum() == 1 and q[at_tip][0] > 0.9 * best
+    assert q[~at_tip].min() > 0.6

@@ -39,6 +39,7 @@ from .errors import NodeBudgetError
 from .geometry import BRep, Domain, GeometryError
 from .geometry.tracing import grid_spacing
 from .progress import Callback, report
+from .sizing import SizeFunction
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -177,11 +178,12 @@ def mesh_boundary(
             raise ValueError(f"fixed point {tuple(fixed_points[i].tolist())} lies outside the domain")
         corners = np.concatenate([corners, fixed_points[np.abs(dfix) <= on]])
 
+    along = _tip_graded(domain, h)
     pts, fixed, loop_id = [], [], []
     for k, loop in enumerate(loops):
         p, f = _insert_corners(loop, corners, on, diam)
-        p, f = _refine(domain, h, p, f)
-        p, f = _select(domain, h, p, f)
+        p, f = _refine(domain, along, p, f)
+        p, f = _select(domain, along, p, f)
         pts.append(p)
         fixed.append(f)
         loop_id.append(np.full(len(p), k))
@@ -236,6 +238,56 @@ def _pin_wedges(h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_], nxt: IntArra
     return out
 
 
+class _TipGraded:
+    """h along the walls of sharp corners: ``min(h, r1_c)`` for ``r <= r1_c`` and
+    ``min(h, kappa_c r)`` beyond, within ``reach_c`` of each sharp corner c (r the distance to
+    c), h elsewhere."""
+
+    def __init__(self, h: SizeFn, tips: FloatArray, kappa: FloatArray, r1: FloatArray, reach: FloatArray):
+        self.h, self.tips, self.kappa, self.r1, self.reach = h, tips, kappa, r1, reach
+        self.tree = cKDTree(tips)
+
+    def __call__(self, p: FloatArray) -> FloatArray:
+        hp = self.h(p)
+        dist, k = self.tree.query(p, distance_upper_bound=float(self.reach.max()))
+        near = np.flatnonzero(np.isfinite(dist))
+        if len(near):
+            c, r = k[near], dist[near]
+            graded = np.where(r <= self.r1[c], self.r1[c], self.kappa[c] * r)
+            inside = r < self.reach[c]
+            hp[near] = np.where(inside, np.minimum(hp[near], graded), hp[near])
+        return hp
+
+
+def _tip_graded(domain: Domain, h: SizeFn) -> SizeFn:
+    """The size Step 1 follows: h, graded geometrically towards the tips of sharp corners.
+
+    Along the two walls of a corner of angle a the nodes then lie at distances growing by the
+    factor ``1 + 2 sin(a / 2)`` from the tip (the walls' separation at each node), on both
+    walls alike, so the strip between them is made of nearly square trapezoids (two triangles
+    of q ~ 0.8 each) down to the tip triangle, which is isosceles: the best the angle allows.
+    Without it the nodes near the tip lie at the floor of the feature size, and the strip
+    narrower than that floor is made of slivers as bad as the tip itself.  The first node lies
+    at ``r1 = h(tip)`` (the tip triangle, isosceles, has the angle's best q at any size), then
+    every segment is kappa times its distance from the tip, until that reaches h.
+    """
+    brep = _exact_brep(domain)
+    if brep is None:
+        return h
+    pts, turn, before, after = brep.junctions()
+    angle = 180.0 - turn  # interior angle: the domain is on the left
+    sharp = angle < SHARP_CORNER
+    if not sharp.any():
+        return h
+    tips, a = pts[sharp], np.radians(angle[sharp])
+    kappa = np.log1p(2.0 * np.sin(0.5 * a))
+    ht = h(tips)
+    r1 = ht
+    # Graded only along the walls: up to where kappa r reaches h, at most the shorter wall.
+    reach = np.minimum(ht / kappa, np.minimum(before[sharp], after[sharp]))
+    return _TipGraded(h, tips, kappa, r1, reach)
+
+
 #: Corners with an interior angle below this (degrees) are sharp: see :func:`_pin_wedges`.
 SHARP_CORNER = 25.0
 #: Nodes of a sharp corner's walls are held still where the walls are closer than this times h.
@@ -251,7 +303,7 @@ def _resolved_vertices(domain: Domain, h: SizeFn) -> FloatArray:
     the domain.  Only where the vertices are closer than h (a digitised curve) does the boundary
     treat them as samples of a smooth curve.
     """
-    brep = domain if isinstance(domain, BRep) else getattr(domain, "exact_brep", lambda: None)()
+    brep = _exact_brep(domain)
     if brep is None:
         return np.empty((0, 2))
     pts, turn, before, after = brep.junctions()
@@ -267,6 +319,115 @@ def _resolved_vertices(domain: Domain, h: SizeFn) -> FloatArray:
 #: at least VERTEX_ARM h long.
 VERTEX_ARM = 0.5
 VERTEX_TURN = 0.1
+
+#: Nearest corners whose cones :func:`corner_size` takes the minimum of, per point.
+CORNER_CONES = 6
+
+
+def _exact_brep(domain: Domain) -> BRep | None:
+    return domain if isinstance(domain, BRep) else getattr(domain, "exact_brep", lambda: None)()
+
+
+def corner_spacing(domain: Domain, h: SizeFn) -> tuple[FloatArray, FloatArray]:
+    """The junctions Step 1 holds fixed and, for each, the distance along the boundary to the
+    nearest other fixed junction of its loop.
+
+    Fixed junctions are the corners (turning more than ``CORNER_ANGLE`` degrees) and the
+    vertices :func:`_resolved_vertices` keeps.  A boundary segment cannot be longer than the
+    stretch between two fixed nodes, so this distance is the longest segment Step 1 can lay
+    next to the corner.
+
+    Returns
+    -------
+    points : (k, 2) array
+    spacing : (k,) array
+        Empty arrays for a domain without an exact boundary (an implicit d).
+    """
+    brep = _exact_brep(domain)
+    if brep is None:
+        return np.empty((0, 2)), np.empty(0)
+    pts, turn, before, after = brep.junctions()
+    start = brep.loop_start
+    fixed = np.abs(turn) > tol.CORNER_ANGLE
+    kink = ~fixed & (np.abs(turn) > VERTEX_TURN)
+    if kink.any():
+        arms = np.minimum(before[kink], after[kink])
+        fixed[np.flatnonzero(kink)] = arms >= VERTEX_ARM * h(pts[kink])
+    out_p, out_s = [], []
+    for k in range(len(start) - 1):
+        lo, hi = int(start[k]), int(start[k + 1])
+        # Arc length of each junction (the end of piece i) from the start of its loop.
+        arc = np.cumsum(before[lo:hi])
+        total = float(arc[-1])
+        idx = np.flatnonzero(fixed[lo:hi])
+        if len(idx) == 0:
+            continue
+        at = arc[idx]
+        gap = np.diff(np.r_[at, at[0] + total])  # to the next fixed junction
+        if len(idx) == 1:
+            gap = np.array([total])
+        out_p.append(pts[lo:hi][idx])
+        out_s.append(np.minimum(gap, np.roll(gap, 1)))
+    if not out_p:
+        return np.empty((0, 2)), np.empty(0)
+    return np.concatenate(out_p), np.concatenate(out_s)
+
+
+class _CornerCap:
+    """``min(h(p), min_c (s_c + rate |p - c|))`` over the ``CORNER_CONES`` nearest corners c."""
+
+    def __init__(self, h: SizeFn, corners: FloatArray, spacing: FloatArray, rate: float) -> None:
+        self.h, self.corners, self.spacing, self.rate = h, corners, spacing, rate
+        self.s_min = float(spacing.min())
+        self.tree = cKDTree(corners)
+
+    def __call__(self, p: FloatArray) -> FloatArray:
+        hp = self.h(p)
+        if len(p) == 0:
+            return hp
+        k = min(CORNER_CONES, len(self.corners))
+        # Corners farther than this cannot lower h anywhere in p: the query skips them.
+        reach = (float(hp.max()) - self.s_min) / self.rate
+        dist, near = self.tree.query(p, k=k, distance_upper_bound=reach)
+        dist, near = dist.reshape(len(p), k), near.reshape(len(p), k)
+        seen = near < len(self.corners)  # a miss is index len(corners), distance inf
+        s = self.spacing[np.minimum(near, len(self.corners) - 1)]
+        cone = np.where(seen, s + self.rate * dist, np.inf)
+        return np.minimum(hp, cone.min(axis=1))
+
+
+def corner_size(domain: Domain, h: SizeFunction, rate: float = 0.2) -> SizeFunction:
+    """h lowered near corners closer together than h, graded back at slope ``rate``.
+
+    Every corner of a polygon is a node (Step 1 fixes it), so where corners are closer than h
+    (a digitised coastline, a detailed outline) the boundary segments are as short as the
+    corners' spacing whatever h says.  Interior nodes at h next to them would make fans of
+    slivers; the size instead becomes ``min(h, s_c + rate |p - c|)`` over the corners c, with
+    s_c the distance to c's nearest fixed neighbour along the boundary (:func:`corner_spacing`),
+    a cone that Eq. 3.1-3.3 and the injection then follow.
+
+    Returns
+    -------
+    SizeFunction
+        ``h`` itself when no corner is closer to its neighbours than h there.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from injmesh import Polygon
+    >>> from injmesh.sizing import as_size_function
+    >>> zigzag = Polygon([(0, 0), (1, 0), (1, 1), (0.55, 1.02), (0.5, 1), (0.45, 1.02), (0, 1)])
+    >>> hc = corner_size(zigzag, as_size_function(0.2))
+    >>> hc(np.array([[0.5, 1.0], [0.5, 0.2]])).round(3).tolist()
+    [0.054, 0.2]
+    """
+    pts, spacing = corner_spacing(domain, h)
+    if len(pts) == 0:
+        return h
+    low = spacing < h(pts) * (1.0 - 1e-9)
+    if not low.any():
+        return h
+    return SizeFunction(_CornerCap(h, pts[low], spacing[low], float(rate)))
 
 
 def _drop_tiny(loops: list[FloatArray], h: SizeFn) -> list[FloatArray]:
@@ -389,20 +550,7 @@ def _insert_corners(
         a, b = loop, np.roll(loop, -1, axis=0)
         ab = b - a
         ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
-        # Nearest segment of each corner, in chunks so that (corners x segments) work arrays
-        # stay near 4 million entries (a 20,000-vertex outline has as many corners).
-        seg = np.empty(len(corners), dtype=np.intp)
-        near_t = np.empty(len(corners))
-        near_d = np.empty(len(corners))
-        step = max(1, 4_000_000 // n)
-        for s0 in range(0, len(corners), step):
-            q = corners[s0 : s0 + step, None, :]
-            t = np.clip(np.einsum("cnk,nk->cn", q - a, ab) / ab2, 0, 1)
-            dist = np.hypot(*(q - (a + t[..., None] * ab)).transpose(2, 0, 1))
-            k = np.argmin(dist, axis=1)
-            rows = np.arange(len(k))
-            seg[s0 : s0 + step], near_t[s0 : s0 + step] = k, t[rows, k]
-            near_d[s0 : s0 + step] = dist[rows, k]
+        seg, near_t, near_d = _nearest_segments(corners, a, ab, ab2)
         # A corner belongs to this loop when the traced polyline passes close to it; traced
         # polylines cut corners by up to about a grid cell, hence the loose radius.
         mine = near_d <= max(on, 2.0 * float(np.sqrt(ab2.max())))
@@ -429,6 +577,50 @@ def _insert_corners(
     # Start each loop at a fixed vertex.
     first = int(np.argmax(fixed))
     return np.roll(loop, -first, axis=0), np.roll(fixed, -first)
+
+
+def _nearest_segments(
+    q: FloatArray, a: FloatArray, ab: FloatArray, ab2: FloatArray
+) -> tuple[IntArray, FloatArray, FloatArray]:
+    """Nearest segment ``a[i] -> a[i] + ab[i]`` of each point q: index (the lowest on a tie),
+    parameter t in [0, 1] of the foot, and distance.
+
+    O((n + k) log n) for n segments of similar lengths: a segment within distance D of q has
+    its midpoint within ``D + length / 2``, and D is at most the distance to the nearest segment
+    end, so only the segments whose midpoints lie in that ball are measured (k-d tree).
+    Segments more than ``4x`` the median length would make every ball large: they are measured
+    against every point, in chunks.
+    """
+    m = len(q)
+    length = np.sqrt(ab2)
+    long = length > 4.0 * float(np.median(length))
+    rows, cols = [np.empty(0, dtype=np.intp)], [np.empty(0, dtype=np.intp)]
+    short = np.flatnonzero(~long)
+    ends = np.concatenate([a[short], a[short] + ab[short]])
+    reach, _ = cKDTree(ends).query(q)
+    mid = a[short] + 0.5 * ab[short]
+    radius = (reach + 0.5 * float(length[short].max())) * (1 + 1e-9)  # rounding: keep the rim
+    balls = cKDTree(mid).query_ball_point(q, radius)
+    sizes = np.fromiter((len(b) for b in balls), dtype=np.intp, count=m)
+    rows.append(np.repeat(np.arange(m), sizes))
+    cols.append(short[np.concatenate([np.asarray(b, dtype=np.intp) for b in balls])])
+    lg = np.flatnonzero(long)
+    step = max(1, 4_000_000 // max(1, len(lg)))
+    for s0 in range(0, m if len(lg) else 0, step):
+        k = min(step, m - s0)
+        rows.append(np.repeat(np.arange(s0, s0 + k), len(lg)))
+        cols.append(np.tile(lg, k))
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    t = np.clip(np.einsum("ij,ij->i", q[r] - a[c], ab[c]) / ab2[c], 0, 1)
+    foot = a[c] + t[:, None] * ab[c]
+    dist = np.hypot(q[r, 0] - foot[:, 0], q[r, 1] - foot[:, 1])
+    # Per point: the smallest distance, then the lowest segment index (as np.argmin would).
+    order = np.lexsort((c, dist, r))
+    first = order[np.r_[True, r[order][1:] != r[order][:-1]]]
+    out_seg = np.zeros(m, dtype=np.intp)
+    out_t, out_d = np.zeros(m), np.full(m, np.inf)
+    out_seg[r[first]], out_t[r[first]], out_d[r[first]] = c[first], t[first], dist[first]
+    return out_seg, out_t, out_d
 
 
 def _refine(
@@ -481,9 +673,20 @@ def _select(
         count[np.argmax(span)] += 3 - count.sum()
     piece = np.repeat(np.arange(len(count)), count)
     k = np.arange(len(piece)) - np.repeat(np.cumsum(count) - count, count)
-    t = np.interp(s_start[piece] + k * span[piece] / count[piece], s, arc)
+    # Stretches that start or end at a sharp corner are laid in whole h-lengths from the corner
+    # (the rounding left at their other end), and those nodes are not balanced: both walls of
+    # the corner then carry nodes at the same distances from its tip (see _tip_graded).
+    tip = _sharp_vertices(p)
+    from_start = tip[fixed_idx[:-1]] & ~tip[fixed_idx[1:] % len(p)]
+    from_end = tip[fixed_idx[1:] % len(p)] & ~tip[fixed_idx[:-1]]
+    whole = (from_start | from_end) & (count > 1)
+    offset = np.where(from_end, span - count, 0.0)
+    equal = s_start[piece] + k * span[piece] / count[piece]
+    at = np.where(whole[piece], s_start[piece] + offset[piece] + k, equal)
+    t = np.interp(at, s, arc)
     t[k == 0] = arc[fixed_idx[:-1]]
-    t = _balance(hv, t, k == 0, arc, total)
+    held = (k == 0) | (from_start[piece] & (k < count[piece] - 2)) | (from_end[piece] & (k > 2))
+    t = _balance(hv, t, held, arc, total)
     out = np.stack([np.interp(t, arc, closed[:, 0]), np.interp(t, arc, closed[:, 1])], axis=1)
     new_fixed = k == 0
     out[new_fixed] = p[fixed_idx[:-1]]
@@ -491,6 +694,14 @@ def _select(
     if free.any():
         out[free] = domain.project(out[free])  # Eq. 3.2
     return out, new_fixed
+
+
+def _sharp_vertices(p: FloatArray) -> NDArray[np.bool_]:
+    """Vertices of a closed polyline (domain on the left) whose interior angle is below
+    ``SHARP_CORNER``."""
+    u, w = np.roll(p, 1, axis=0) - p, np.roll(p, -1, axis=0) - p
+    angle = np.arctan2(w[:, 0] * u[:, 1] - w[:, 1] * u[:, 0], np.einsum("ij,ij->i", w, u)) % (2 * np.pi)
+    return np.asarray(angle < np.radians(SHARP_CORNER))
 
 
 def _balance(

@@ -13,7 +13,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .boundary import BoundaryMesh, estimate_nodes, mesh_boundary
+from .boundary import BoundaryMesh, corner_size, estimate_nodes, mesh_boundary
 from .errors import ConvergenceWarning, MeshError, NodeBudgetError
 from .geometry import Domain, GeometryError, as_domain
 from .geometry.base import as_points
@@ -190,7 +190,7 @@ def generate(
         if smoothing not in ("hybrid", "attractive"):
             raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
         dom, cleaning = _clean(dom, h)
-        target, follow = _target_size(dom, h, feature_layers, gradation)
+        target, follow = _target_size(dom, corner_size(dom, h, _rate(gradation)), feature_layers, gradation)
         mesh = _injection(dom, follow, fixed, max_iterations, int(max_nodes), smoothing, callback)
         mesh = replace(mesh, size=target, stats=replace(mesh.stats, cleaning=cleaning))
     else:
@@ -240,8 +240,9 @@ def initial_nodes(
     2
     """
     dom = as_domain(domain, bbox=bbox, fixed_points=fixed_points)
-    dom, _ = _clean(dom, as_size_function(size))
-    _, h = _target_size(dom, as_size_function(size), feature_layers, gradation)
+    h0 = as_size_function(size)
+    dom, _ = _clean(dom, h0)
+    _, h = _target_size(dom, corner_size(dom, h0, _rate(gradation)), feature_layers, gradation)
     fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
     bnd, seeds, injected = _place_nodes(dom, h, fixed, max_nodes, None)
     return np.concatenate([seeds, injected])
@@ -366,6 +367,13 @@ def _clean(domain: Domain, h: SizeFunction) -> tuple[Domain, dict[str, int]]:
 
     GIS outlines carry vertices 1e-7 apart; meshed as given they make a duplicate node and a
     triangle of zero area.  Changes are logged and kept in ``mesh.stats.cleaning``.
+
+    Cleaning moves the boundary, by design and only within its tolerance of the outline's
+    *width*: a merged vertex moves by less than ``CLEAN * h_min``; a dropped spike (a part of
+    the outline narrower than that, one hundredth of the smallest element) disappears whatever
+    its length, since no triangle could fill it.  The mesh is a mesh of the cleaned domain, and
+    its output checks (:mod:`injmesh.validate`) hold against that domain; compare a mesh with
+    the raw outline only where ``mesh.stats.cleaning`` is empty.
     """
     # A constant h (capped at the diameter, as the stages cap it) is its own minimum.
     if h.constant is not None:
@@ -378,6 +386,11 @@ def _clean(domain: Domain, h: SizeFunction) -> tuple[Domain, dict[str, int]]:
         logger.info("geometry cleaned at %.3g: %s", CLEAN * h_min,
                     ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in changes.items()))
     return cleaned, changes
+
+
+def _rate(gradation: float | None) -> float:
+    """Slope at which sizes lowered next to close corners grow back (:func:`corner_size`)."""
+    return 0.2 if gradation is None else float(gradation)
 
 
 def _target_size(

@@ -132,6 +132,11 @@ class BRep(Domain):
         return len(self._p0)
 
     @property
+    def loop_start(self) -> IntArray:
+        """Pieces ``loop_start[k]:loop_start[k + 1]`` form loop k (a copy)."""
+        return np.asarray(self._loop_start, dtype=np.intp).copy()
+
+    @property
     def n_loops(self) -> int:
         """Number of closed loops."""
         return len(self._loop_start) - 1
@@ -285,29 +290,27 @@ class BRep(Domain):
         """
         if not (spacing > 0):
             raise ValueError(f"spacing must be positive, got {spacing!r}")
-        loops = []
         split = self.n_loops > 1
-        for k in range(self.n_loops):
-            pts = []
-            for i in range(self._loop_start[k], self._loop_start[k + 1]):
-                sw = self._sw[i]
-                if sw == 0:
-                    length = float(np.hypot(*(self._p1[i] - self._p0[i])))
-                    n = max(1, math.ceil(length / spacing * (1 - 1e-9))) if split else 1
-                    t = np.arange(n)[:, None] / n
-                    pts.append(self._p0[i] + t * (self._p1[i] - self._p0[i]))
-                    continue
-                n = max(
-                    math.ceil(abs(sw) * self._r[i] / spacing * (1 - 1e-9)),
-                    math.ceil(16 * abs(sw) / (2 * math.pi) * (1 - 1e-9)),
-                    1,
-                )
-                t = self._a0[i] + sw * np.arange(n) / n
-                arc = self._c[i] + self._r[i] * np.stack([np.cos(t), np.sin(t)], axis=1)
-                arc[0] = self._p0[i]
-                pts.append(arc)
-            loops.append(np.concatenate(pts) + self._origin)
-        return loops
+        sw, r = self._sw, self._r
+        arc = sw != 0
+        chord = np.hypot(*(self._p1 - self._p0).T)
+        n_seg = np.maximum(1, np.ceil(chord / spacing * (1 - 1e-9))) if split else np.ones(len(sw))
+        n_arc = np.maximum(np.maximum(np.ceil(np.abs(sw) * r / spacing * (1 - 1e-9)),
+                                      np.ceil(16 * np.abs(sw) / (2 * math.pi) * (1 - 1e-9))), 1)
+        count = np.where(arc, n_arc, n_seg).astype(np.intp)
+        # Sample j of piece i at fraction j / count[i] of the piece, all pieces at once.
+        piece = np.repeat(np.arange(len(sw)), count)
+        j = np.arange(len(piece)) - np.repeat(np.cumsum(count) - count, count)
+        frac = j / count[piece]
+        pts = self._p0[piece] + frac[:, None] * (self._p1 - self._p0)[piece]
+        on_arc = arc[piece] & (j > 0)  # an arc's first sample is its exact start point
+        if on_arc.any():
+            pa = piece[on_arc]
+            t = self._a0[pa] + sw[pa] * j[on_arc] / count[pa]
+            pts[on_arc] = self._c[pa] + r[pa][:, None] * np.stack([np.cos(t), np.sin(t)], axis=1)
+        pts += self._origin
+        bounds = np.searchsorted(piece, self._loop_start)
+        return [pts[bounds[k]:bounds[k + 1]] for k in range(self.n_loops)]
 
     def cleaned(self, tolerance: float) -> tuple[Domain, dict[str, int]]:
         """Remove pieces shorter than ``tolerance`` (their neighbours meet at the removed
