@@ -175,11 +175,13 @@ def generate(
         if smoothing not in ("hybrid", "attractive"):
             raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
         dom, cleaning = _clean(dom, h)
-        target, follow = _target_size(dom, h, feature_layers, gradation)
         constraints = None
         if regions is not None or curves is not None:
-            h_min, _ = estimate_nodes(dom, _capped(follow, dom.diameter))
+            h_min, _ = estimate_nodes(dom, h.restricted(dom))
             constraints = build_constraints(dom, regions, curves, h_min)
+            if constraints.regions and feature_layers is not None:
+                h = _region_features(dom, h, constraints, feature_layers)
+        target, follow = _target_size(dom, h, feature_layers, gradation)
         mesh = _injection(dom, follow, fixed, max_iterations, int(max_nodes), smoothing, callback,
                           constraints)
         mesh = replace(mesh, size=target, stats=replace(mesh.stats, cleaning=cleaning))
@@ -645,3 +647,37 @@ def _curve_tags(
     for i in np.flatnonzero(region).tolist():
         tags[i] = index[(int(lo[i]), int(hi[i]))]
     return np.asarray(tags, dtype=np.intp), tuple(names)
+
+
+def _region_features(domain: Domain, h: SizeFunction, cons: Constraints, layers: float) -> SizeFunction:
+    """h lowered to ``feature_size / layers`` of each region and of the rest of the domain.
+
+    An inclusion a few h across, or a gap between an inclusion and the boundary, is a thin part
+    of the mesh just as a strait is: measured on the paper's cases, an inclusion one h from the
+    boundary gave q_min 0.61 without this.  The domain's own feature size and the gradation
+    limit are applied afterwards, as without regions.
+    """
+    from .sizing import feature_size
+
+    rest: Domain = domain
+    for r in cons.regions:
+        rest = rest - r
+    parts = [*cons.regions, rest]
+    sizes = [feature_size(part) for part in parts]
+    return as_size_function(_LowerInParts(h, parts, sizes, float(layers)))
+
+
+class _LowerInParts:
+    """``min(h, fs_k / layers)`` with ``fs_k`` the feature size of the part holding the point."""
+
+    def __init__(self, h: SizeFunction, parts: list[Domain],
+                 sizes: list[Callable[[FloatArray], FloatArray]], layers: float) -> None:
+        self.h, self.parts, self.sizes, self.layers = h, parts, sizes, layers
+
+    def __call__(self, p: FloatArray) -> FloatArray:
+        out = np.array(self.h(p), dtype=float)
+        for part, fs in zip(self.parts, self.sizes, strict=True):
+            inside = part.sdf(p) <= 0
+            if inside.any():
+                out[inside] = np.minimum(out[inside], fs(p[inside]) / self.layers)
+        return out

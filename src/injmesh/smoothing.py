@@ -575,8 +575,8 @@ def _recover(
     return p, tri, walls, origin, count
 
 
-def _split_worthy(h: SizeFn, p: FloatArray, seg: IntArray, either_side: bool = False
-                  ) -> NDArray[np.bool_]:
+def _split_worthy(h: SizeFn, p: FloatArray, seg: IntArray, either_side: bool = False,
+                  alive: NDArray[np.bool_] | None = None) -> NDArray[np.bool_]:
     """Segments longer than ``SPLIT_MIN * h`` with a node inside their diametral circle on the
     domain's side (left of a -> b; on either side for an interior curve)."""
     if len(seg) == 0:
@@ -590,6 +590,8 @@ def _split_worthy(h: SizeFn, p: FloatArray, seg: IntArray, either_side: bool = F
     for i in np.flatnonzero(long_):
         near = np.asarray(tree.query_ball_point(mid[i], 0.5 * length[i] * (1 - 1e-9)), dtype=np.intp)
         near = near[(near != seg[i, 0]) & (near != seg[i, 1])]
+        if alive is not None:
+            near = near[alive[near]]
         e, c = b[i] - a[i], p[near] - a[i]
         worthy[i] = len(near) > 0 if either_side else bool(np.any(e[0] * c[:, 1] - e[1] * c[:, 0] > 0))
     return worthy
@@ -607,42 +609,67 @@ def _recover_interfaces(
 ) -> tuple[FloatArray, IntArray, IntArray, IntArray, IntArray, int]:
     """Make every interior curve segment an edge, as :func:`_recover` does for the boundary.
 
-    Free nodes in a missing segment's diametral circle (either side) are pushed out; a missing
-    segment still encroached and longer than ``SPLIT_MIN * h`` is split at its midpoint
-    projected onto its own curve; at most ``RECOVER_ROUNDS`` rounds.  Then every segment still
-    missing, boundary or interior, is recovered by flips.  Nodes from index ``n_pre`` on (added
-    by recovery, on a boundary or curve) never move.  Returns the points, triangles, segments,
-    their curve, every node's curve and the number of triangulations.
+    A free node inside a missing segment's diametral circle (either side) is dropped rather
+    than pushed out: it is closer than half a segment to the curve, so the nodes around it are
+    crowded, and a node pushed to the circle makes a sliver with them.  A missing segment still
+    encroached (by curve or boundary nodes) and longer than ``SPLIT_MIN * h`` is split at its
+    midpoint projected onto its own curve; at most ``RECOVER_ROUNDS`` rounds.  Then every
+    segment still missing, boundary or interior, is recovered by flips.  Dropped nodes are in
+    no triangle (``smooth`` removes them).  Returns the points, triangles, segments, their
+    curve, every node's curve and the number of triangulations.
     """
     seg, group = itf.segments.copy(), itf.group.copy()
     node_group = np.zeros(len(p), dtype=np.intp)
     node_group[: len(itf.node_group)] = itf.node_group
+    alive = np.ones(len(p), dtype=bool)
     count = 0
     for _ in range(RECOVER_ROUNDS):
-        p, tri, c = _conform(domain, p, tri, n_fixed, walls, rounds=1, pinned=np.arange(n_pre, len(p)),
-                             interior=seg)
-        count += c
-        lost = np.flatnonzero(~_has_edges(tri, seg))
-        k = lost[_split_worthy(h, p, seg[lost], either_side=True)]
-        if len(k) == 0:
+        miss = missing_walls(tri, seg)
+        if len(miss) == 0:
             break
-        a, b = seg[k, 0], seg[k, 1]
-        new = itf.project(0.5 * (p[a] + p[b]), group[k])
+        a, b = p[miss[:, 0]], p[miss[:, 1]]
+        free = np.flatnonzero(alive[n_fixed:n_pre]) + n_fixed
+        if len(free):
+            tree = cKDTree(p[free])
+            for near in tree.query_ball_point(0.5 * (a + b), 0.5 * np.hypot(*(b - a).T) * (1 - 1e-9)):
+                alive[free[np.asarray(near, dtype=np.intp)]] = False
+        tri = _triangulate_alive(domain, p, walls, alive)
+        count += 1
+        lost = np.flatnonzero(~_has_edges(tri, seg))
+        k = lost[_split_worthy(h, p, seg[lost], either_side=True, alive=alive)]
+        if len(k) == 0:
+            continue
+        a_, b_ = seg[k, 0], seg[k, 1]
+        new = itf.project(0.5 * (p[a_] + p[b_]), group[k])
         ids = len(p) + np.arange(len(k))
         p = np.concatenate([p, new])
+        alive = np.r_[alive, np.ones(len(k), dtype=bool)]
         node_group = np.concatenate([node_group, group[k]])
         head = seg.copy()
         head[k, 1] = ids
-        seg = np.concatenate([head, np.stack([ids, b], axis=1)])
+        seg = np.concatenate([head, np.stack([ids, b_], axis=1)])
         group = np.concatenate([group, group[k]])
-        tri = triangulate(domain, p, walls)
+        tri = _triangulate_alive(domain, p, walls, alive)
         count += 1
     required = np.concatenate([walls, seg])
     if not _has_edges(tri, required).all():
-        full, _ = recover_segments(p, delaunay(p), required)
-        tri = inside_triangles(p, full, domain.sdf, walls)
+        idx = np.flatnonzero(alive)
+        inv = np.full(len(p), -1, dtype=np.intp)
+        inv[idx] = np.arange(len(idx))
+        full, _ = recover_segments(p[idx], delaunay(p[idx]), inv[required])
+        tri = idx[inside_triangles(p[idx], full, domain.sdf, inv[walls])]
         count += 1
     return p, tri, seg, group, node_group, count
+
+
+def _triangulate_alive(domain: Domain, p: FloatArray, walls: IntArray, alive: NDArray[np.bool_]) -> IntArray:
+    """:func:`triangulate` of the nodes flagged ``alive``, in the numbering of all nodes."""
+    if alive.all():
+        return triangulate(domain, p, walls)
+    idx = np.flatnonzero(alive)
+    inv = np.full(len(p), -1, dtype=np.intp)
+    inv[idx] = np.arange(len(idx))
+    return idx[triangulate(domain, p[idx], inv[walls])]
 
 
 def _has_edges(tri: IntArray, walls: IntArray) -> NDArray[np.bool_]:
