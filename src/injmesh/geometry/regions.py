@@ -473,4 +473,72 @@ def _unique_points(q: FloatArray, eps: float) -> FloatArray:
     return q[keep]
 
 
-__all__ = ["Constraints", "CurveError", "Piece", "RegionError", "build_constraints"]
+
+
+
+def split_geojson(obj: object) -> tuple[object | None, dict[str, Domain], dict[str, FloatArray]]:
+    """Separate a GeoJSON FeatureCollection into the domain, its regions and its curves.
+
+    A feature whose ``properties`` has a ``"region"`` entry is a region named by it; a
+    LineString feature is a curve (named by its ``"name"`` or ``"curve"`` property, else
+    ``"curve k"``; a MultiLineString gives one curve per line); the other features make the
+    domain.  Anything that is not a FeatureCollection is returned unchanged with no regions.
+
+    Returns
+    -------
+    domain : GeoJSON mapping or None
+        A FeatureCollection of the domain's features, or None when there are none.
+    regions : dict name -> Domain
+    curves : dict name -> (k, 2) array
+
+    Examples
+    --------
+    >>> fc = {"type": "FeatureCollection", "features": [
+    ...     {"type": "Feature", "properties": {},
+    ...      "geometry": {"type": "Polygon", "coordinates": [[[0, 0], [1, 0], [1, 1], [0, 0]]]}},
+    ...     {"type": "Feature", "properties": {"name": "crack"},
+    ...      "geometry": {"type": "LineString", "coordinates": [[0.5, 0.1], [0.8, 0.4]]}}]}
+    >>> rest, regions, curves = split_geojson(fc)
+    >>> len(rest["features"]), list(regions), list(curves)
+    (1, [], ['crack'])
+    """
+    if not (isinstance(obj, Mapping) and obj.get("type") == "FeatureCollection"):
+        return obj, {}, {}
+    features = obj.get("features")
+    if not isinstance(features, list):
+        raise GeometryError("a FeatureCollection needs a list of features")
+    rest, regions, curves = [], {}, {}
+    for k, f in enumerate(features, start=1):
+        if not isinstance(f, Mapping):
+            raise GeometryError(f"feature {k} is not a GeoJSON object")
+        props = f.get("properties") or {}
+        geom = f.get("geometry") or {}
+        kind = geom.get("type") if isinstance(geom, Mapping) else None
+        if kind in ("LineString", "MultiLineString"):
+            base = str(props.get("name") or props.get("curve") or f"curve {len(curves) + 1}")
+            lines = [geom.get("coordinates")] if kind == "LineString" else list(geom.get("coordinates") or [])
+            for j, line in enumerate(lines, start=1):
+                name = base if len(lines) == 1 else f"{base} {j}"
+                curves[_fresh(name, curves)] = np.asarray(line, dtype=float)
+        elif isinstance(props, Mapping) and props.get("region") is not None:
+            name = _fresh(str(props["region"]), regions)
+            try:
+                regions[name] = as_domain(dict(geom))
+            except (TypeError, ValueError) as exc:
+                raise RegionError(f"region {name!r}: {exc}") from None
+        else:
+            rest.append(f)
+    domain = {"type": "FeatureCollection", "features": rest} if rest else None
+    return domain, regions, curves
+
+
+def _fresh(name: str, taken: Mapping[str, object]) -> str:
+    """``name``, or ``name 2``, ``name 3``, ... if taken."""
+    if name not in taken:
+        return name
+    k = 2
+    while f"{name} {k}" in taken:
+        k += 1
+    return f"{name} {k}"
+
+__all__ = ["Constraints", "CurveError", "Piece", "RegionError", "build_constraints", "split_geojson"]
