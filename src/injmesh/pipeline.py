@@ -22,7 +22,7 @@ from .geometry.tracing import grid_spacing
 from .injection import inject_nodes
 from .mesh import Mesh, MeshStats
 from .progress import Callback
-from .sizing import SizeFunction, SizeLike, as_size_function, effective_size
+from .sizing import GriddedSize, SizeFunction, SizeLike, as_size_function, effective_size
 from .smoothing import Interfaces, Smoothing, smooth
 from .triangulation import boundary_edges
 from .validate import mesh_defects
@@ -663,22 +663,36 @@ def _region_features(domain: Domain, h: SizeFunction, cons: Constraints, layers:
     rest: Domain = domain
     for r in cons.regions:
         rest = rest - r
-    parts = [*cons.regions, rest]
-    sizes = [feature_size(part) for part in parts]
-    return as_size_function(_LowerInParts(h, parts, sizes, float(layers)))
+    sizes = [feature_size(part) for part in (*cons.regions, rest)]
+    lowered = _LowerInParts(h, list(cons.regions), sizes, float(layers))
+    # Where no part is thinner than layers * h (probed on each feature grid inside the domain),
+    # h is kept as it is: evaluated at every smoothing step, it should cost no more than h.
+    for fs in sizes:
+        gx, gy = np.meshgrid(fs.x, fs.y)
+        q = np.stack([gx.ravel(), gy.ravel()], axis=1)
+        q = q[domain.sdf(q) < 0]
+        if len(q) and np.any(lowered(q) < h(q) * (1 - 1e-12)):
+            return as_size_function(lowered)
+    return h
 
 
 class _LowerInParts:
-    """``min(h, fs_k / layers)`` with ``fs_k`` the feature size of the part holding the point."""
+    """``min(h, fs_k / layers)`` with ``fs_k`` the feature size of the region holding the point,
+    or (the last) of the rest of the domain; only the regions' d are evaluated, since h is asked
+    inside the domain only."""
 
-    def __init__(self, h: SizeFunction, parts: list[Domain],
-                 sizes: list[Callable[[FloatArray], FloatArray]], layers: float) -> None:
-        self.h, self.parts, self.sizes, self.layers = h, parts, sizes, layers
+    def __init__(self, h: SizeFunction, regions: list[Domain], sizes: list[GriddedSize],
+                 layers: float) -> None:
+        self.h, self.regions, self.sizes, self.layers = h, regions, sizes, layers
 
     def __call__(self, p: FloatArray) -> FloatArray:
         out = np.array(self.h(p), dtype=float)
-        for part, fs in zip(self.parts, self.sizes, strict=True):
-            inside = part.sdf(p) <= 0
+        rest = np.ones(len(p), dtype=bool)
+        for region, fs in zip(self.regions, self.sizes, strict=False):
+            inside = region.sdf(p) <= 0
+            rest &= ~inside
             if inside.any():
                 out[inside] = np.minimum(out[inside], fs(p[inside]) / self.layers)
+        if rest.any():
+            out[rest] = np.minimum(out[rest], self.sizes[-1](p[rest]) / self.layers)
         return out
