@@ -14,11 +14,10 @@ import numpy as np
 import pytest
 
 import injmesh
+from conftest import assert_valid_mesh
 from injmesh import Circle, Rectangle
 from injmesh.cases import CASES
 from injmesh.geometry.regions import CurveError, RegionError
-
-from conftest import assert_valid_mesh
 
 SQUARE = Rectangle((0, 0), (1, 1))
 INCLUSIONS = {"a": Circle((0.3, 0.3), 0.15), "b": Circle((0.7, 0.65), 0.2)}

@@ -215,14 +215,14 @@ def write(mesh: Mesh, path: str | os.PathLike[str], *, file_format: str | None =
     with atomic_path(path) as tmp:
         if fmt == "npz":
             with open(tmp, "xb") as fh:
-                np.savez_compressed(
-                    fh,
-                    points=np.asarray(mesh.points, dtype=float),
-                    triangles=np.asarray(mesh.triangles, dtype=np.int64),
-                    boundary_edges=np.asarray(mesh.boundary_edges, dtype=np.int64),
-                    boundary_tags=np.asarray(mesh.boundary_tags, dtype=np.int64),
+                arrays: dict[str, Any] = {
+                    "points": np.asarray(mesh.points, dtype=float),
+                    "triangles": np.asarray(mesh.triangles, dtype=np.int64),
+                    "boundary_edges": np.asarray(mesh.boundary_edges, dtype=np.int64),
+                    "boundary_tags": np.asarray(mesh.boundary_tags, dtype=np.int64),
                     **_region_arrays(mesh),
-                )
+                }
+                np.savez_compressed(fh, **arrays)
         else:
             _write_meshio(meshio, mesh, tmp, fmt)
 

@@ -147,7 +147,7 @@ class Mesh:
         """Total area of each region, indexed by tag (``len(region_names)`` entries)."""
         tags = np.asarray(self.triangle_tags, dtype=np.intp)
         n = max(len(self.region_names), int(tags.max(initial=-1)) + 1)
-        return np.bincount(tags, weights=self.areas(), minlength=n)
+        return np.asarray(np.bincount(tags, weights=self.areas(), minlength=n), dtype=np.float64)
 
     @property
     def n_points(self) -> int:

@@ -602,8 +602,8 @@ def _region_tags(
     same = np.flatnonzero((ks[1:] == ks[:-1]) & ~barrier[order[1:]])
     graph = coo_matrix((np.ones(len(same)), (owner[order[same]], owner[order[same + 1]])), shape=(m, m))
     _, label = connected_components(graph, directed=False)
-    u, w = points[tri[:, 1]] - points[tri[:, 0]], points[tri[:, 2]] - points[tri[:, 0]]
-    area = np.abs(0.5 * (u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]))
+    e1, e2 = points[tri[:, 1]] - points[tri[:, 0]], points[tri[:, 2]] - points[tri[:, 0]]
+    area = np.abs(0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]))
     r = len(cons.regions) + 1
     votes = np.bincount(label * r + centroid_tag, weights=area, minlength=(label.max() + 1) * r)
     winner = np.argmax(votes.reshape(-1, r), axis=1)

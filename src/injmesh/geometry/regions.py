@@ -369,8 +369,10 @@ def _check_simple(name: str, line: FloatArray, closed: bool, eps: float) -> None
 def _segment_hits(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray, eps: float
                   ) -> BoolArray:
     """Whether segment a[i]-b[i] meets segment c[j]-d[j], for all i, j (touching counts)."""
+
     def orient(p: FloatArray, q: FloatArray, r: FloatArray) -> FloatArray:
-        return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
+        u, v = q - p, r - p
+        return np.asarray(u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0])
 
     A, B = a[:, None, :], b[:, None, :]
     C, D = c[None, :, :], d[None, :, :]
@@ -507,7 +509,9 @@ def split_geojson(obj: object) -> tuple[object | None, dict[str, Domain], dict[s
     features = obj.get("features")
     if not isinstance(features, list):
         raise GeometryError("a FeatureCollection needs a list of features")
-    rest, regions, curves = [], {}, {}
+    rest: list[object] = []
+    regions: dict[str, Domain] = {}
+    curves: dict[str, FloatArray] = {}
     for k, f in enumerate(features, start=1):
         if not isinstance(f, Mapping):
             raise GeometryError(f"feature {k} is not a GeoJSON object")
