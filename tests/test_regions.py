@@ -306,3 +306,50 @@ def test_two_materials_on_the_inclusions():
     assert harmonic < flux_in < arithmetic
     assert 1.0 < flux_in  # the inclusions conduct better than the matrix
     assert np.all((u >= -1e-12) & (u <= 1 + 1e-12))  # maximum principle
+
+
+# --- command line ------------------------------------------------------------------------------
+
+
+def _feature(geometry: dict, **props: object) -> dict:
+    return {"type": "Feature", "properties": props, "geometry": geometry}
+
+
+def test_cli_feature_collection_with_regions_and_curves(tmp_path):
+    import json
+
+    from injmesh.cli import main
+
+    plate = {"type": "Polygon", "coordinates": [[[0, 0], [2, 0], [2, 1], [0, 1], [0, 0]]]}
+    steel = {"type": "Polygon", "coordinates": [[[1.2, 0.2], [1.8, 0.2], [1.8, 0.8], [1.2, 0.8], [1.2, 0.2]]]}
+    fault = {"type": "LineString", "coordinates": [[0.2, 0.2], [0.9, 0.7]]}
+    src = tmp_path / "plate.geojson"
+    src.write_text(json.dumps({"type": "FeatureCollection", "features": [
+        _feature(plate), _feature(steel, region="steel"), _feature(fault, name="fault")]}))
+    out = tmp_path / "plate.msh"
+    assert main(["generate", str(src), "--size", "0.15", "-o", str(out), "-q"]) == 0
+    mesh = injmesh.read(out)
+    assert mesh.region_names == ("domain", "steel") and mesh.curve_names == ("fault", "domain/steel")
+    assert mesh.region_areas() == pytest.approx([1.64, 0.36], abs=1e-12)
+
+    regions = tmp_path / "zones.geojson"
+    regions.write_text(json.dumps({"type": "FeatureCollection", "features": [_feature(steel, name="core")]}))
+    out2 = tmp_path / "box.npz"
+    assert main(["generate", "POLYGON ((0 0, 2 0, 2 1, 0 1))", "--regions", str(regions), "--size", "0.15",
+                 "-o", str(out2), "-q"]) == 0
+    assert injmesh.read(out2).region_names == ("domain", "core")
+
+
+def test_cli_bad_region_leaves_no_file(tmp_path, capsys):
+    import json
+
+    from injmesh.cli import main
+
+    big = {"type": "Polygon", "coordinates": [[[0.5, 0.5], [1.5, 0.5], [1.5, 0.8], [0.5, 0.8], [0.5, 0.5]]]}
+    regions = tmp_path / "zones.geojson"
+    regions.write_text(json.dumps({"type": "FeatureCollection", "features": [_feature(big, region="big")]}))
+    out = tmp_path / "box.msh"
+    assert main(["generate", "POLYGON ((0 0, 1 0, 1 1, 0 1))", "--regions", str(regions), "--size", "0.2",
+                 "-o", str(out)]) != 0
+    assert "region 'big' extends outside the domain" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == [regions]
