@@ -55,6 +55,12 @@ Other choices the paper leaves open:
   ``generate`` then checks the result (:mod:`injmesh.validate`).
 * **Stopping condition.**  No node moves more than ``DPTOL * hbar`` in a step, or the cap is
   reached (then ``converged`` is False).
+* **Interior curves** (regions' boundaries, cracks: :class:`Interfaces`).  Their nodes slide
+  like boundary nodes, each projected onto its own curve; their junctions are fixed.  At the
+  end their segments are recovered like the boundary's (``_recover_interfaces``), except that
+  a free node encroaching a missing segment is dropped, not pushed (pushed, it made slivers:
+  q 0.47 on the issue's square); they never bound the domain, so triangles are classified by
+  the boundary segments alone.
 """
 
 from __future__ import annotations
