@@ -11,15 +11,19 @@
     kernel alone), feature_size.
 (d) Domains thinner than h somewhere (a channel, a neck, a hole near the rim, a spike): q_min
     with the plain h and with ``effective_size(h, domain)`` (feature size / 2, rate 0.2).
+(e) ``generate(..., target_nodes=N)`` on the six paper cases (their own h scaled) and on graded
+    sizes: target, nodes obtained, error %, the scale found, full meshes made, seconds.
 
 Usage::
 
-    python benchmarks/size_fields.py [--skip-large] [--repeat 3]
+    python benchmarks/size_fields.py [--skip-large] [--repeat 3] [--parts abcde]
+                                     [--targets 300 1000 5000]
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 import time
 import warnings
@@ -91,22 +95,29 @@ def part_b() -> None:
     def jump(p: np.ndarray) -> np.ndarray:
         return np.where(p[:, 0] < 0.5, 0.02, 0.4)
 
-    print("| size | N | q_min | q_mean | iterations | converged | seconds (size) | seconds (mesh) |")
-    print("|---|---|---|---|---|---|---|---|")
-    for label, make in [
-        ("raw jump", lambda: jump),
-        ("limit_gradation(rate=0.2)", lambda: limit_gradation(jump, dom, 0.2)),
-        ("limit_gradation(rate=0.15)", lambda: limit_gradation(jump, dom, 0.15)),
-        ("effective_size(layers=2, rate=0.2)", lambda: effective_size(jump, dom)),
+    # generate's own corrections are turned off (feature_layers=None, gradation=None) except in
+    # the last row, so each row meshes exactly the size named; strict=False so the raw jump's
+    # mesh is reported even when it fails its checks.
+    print("| size | N | q_min | q_mean | iterations | converged | valid | seconds (size) | "
+          "seconds (mesh) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    raw = {"feature_layers": None, "gradation": None}
+    for label, make, options in [
+        ("raw jump (before)", lambda: jump, raw),
+        ("limit_gradation(rate=0.2)", lambda: limit_gradation(jump, dom, 0.2), raw),
+        ("limit_gradation(rate=0.15)", lambda: limit_gradation(jump, dom, 0.15), raw),
+        ("effective_size(layers=2, rate=0.2)", lambda: effective_size(jump, dom), raw),
+        ("raw jump, generate's defaults (gradation=0.2)", lambda: jump, {}),
     ]:
         t_size, size = timed(make)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            t_mesh, mesh = timed(lambda size=size: injmesh.generate(dom, size))
+            t_mesh, mesh = timed(lambda size=size, options=options: injmesh.generate(
+                dom, size, strict=False, **options))
         q = mesh.quality()
         print(
             f"| {label} | {mesh.n_points} | {q.min():.4f} | {q.mean():.4f} | {mesh.stats.iterations} | "
-            f"{mesh.stats.converged} | {t_size:.3f} | {t_mesh:.2f} |"
+            f"{mesh.stats.converged} | {mesh.stats.valid} | {t_size:.3f} | {t_mesh:.2f} |"
         )
     print()
 
@@ -191,15 +202,88 @@ def part_d() -> None:
     print()
 
 
+def part_e(targets: list[int]) -> None:
+    print("(e) generate(domain, h, target_nodes=N): h scaled to meet N (defaults: feature_layers=2, "
+          "gradation=0.2)\n")
+    print("| domain | h | target | got | error % | scale | meshes | q_min | seconds | "
+          "seconds searching |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    square = Rectangle((0, 0), (1, 1))
+
+    def point(p: np.ndarray) -> np.ndarray:
+        return 0.005 + 0.3 * np.hypot(p[:, 0] - 0.3, p[:, 1] - 0.3)
+
+    def jump(p: np.ndarray) -> np.ndarray:
+        return np.where(p[:, 0] < 0.5, 0.02, 0.4)
+
+    domains = [(name, case.geometry, case.size, "the case's") for name, case in CASES.items()]
+    domains += [("unit square", square, point, "0.005 + 0.3 r (point)"),
+                ("unit square", square, jump, "0.02 / 0.4 (20:1 jump)"),
+                ("unit square", square, 1.0, "uniform")]
+    worst = 0.0
+    for name, dom, h, label in domains:
+        for n in targets:
+            t = time.perf_counter()
+            with _SearchLog() as log, warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                mesh = injmesh.generate(dom, h, target_nodes=n)
+            seconds = time.perf_counter() - t
+            err = 100.0 * (mesh.n_points / n - 1.0)
+            if label == "the case's":
+                worst = max(worst, abs(err))
+            note = " (warned)" if caught else ""
+            print(f"| {name} | {label} | {n} | {mesh.n_points} | {err:+.2f}{note} | {log.scale:.4g} | "
+                  f"{log.meshes} | {mesh.quality().min():.3f} | {seconds:.2f} | "
+                  f"{mesh.stats.seconds['target_nodes']:.2f} |")
+    print(f"\nlargest |error| on the six paper cases: {worst:.2f} % (target <= 3 %)\n")
+
+
+class _SearchLog(logging.Handler):
+    """What ``target_nodes`` did, from the ``injmesh.pipeline`` log: full meshes made, scale."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.DEBUG)
+        self.meshes, self.scale = 0, float("nan")
+        self.logger = logging.getLogger("injmesh.pipeline")
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if "gives a mesh of" in record.msg:
+            self.meshes += 1
+        elif "h scaled by" in record.msg and "counts of Steps" in record.msg:
+            self.scale = float(record.args[1])  # type: ignore[index]
+
+    def __enter__(self) -> _SearchLog:
+        self.level_before = self.logger.level
+        self.logger.addHandler(self)
+        self.logger.setLevel(logging.DEBUG)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.logger.removeHandler(self)
+        self.logger.setLevel(self.level_before)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--skip-large", action="store_true", help="1e6-node grid for (c) instead of 1e7")
+    parser.add_argument("--parts", default="abdce", help="which parts to run, in order (default abdce)")
+    parser.add_argument("--targets", type=int, nargs="+", default=[300, 1000, 5000],
+                        help="node counts for (e)")
     args = parser.parse_args()
-    part_a(args.repeat)
-    part_b()
-    part_d()
-    part_c(args.repeat, args.skip_large)
+    for part in args.parts:
+        if part == "a":
+            part_a(args.repeat)
+        elif part == "b":
+            part_b()
+        elif part == "c":
+            part_c(args.repeat, args.skip_large)
+        elif part == "d":
+            part_d()
+        elif part == "e":
+            part_e(args.targets)
+        else:
+            parser.error(f"unknown part {part!r}: choose from abcde")
 
 
 if __name__ == "__main__":

@@ -12,6 +12,8 @@ Shell usage::
     injmesh generate shape.geojson --size 0.05 -o shape.vtu
     injmesh generate shape.wkt --size "0.02 + 0.1*hypot(x, y)" -o shape.msh
     injmesh generate shape.poly --size-min 0.02 --growth 0.3 --size-max 0.2 -o shape.xdmf
+    injmesh generate shape.geojson --size depth.npz -o shape.msh   # a raster (x, y, values)
+    injmesh generate shape.wkt --nodes 5000 --gradation 0.3 --feature-layers 3 -o shape.msh
     injmesh quality shape.msh --size 0.05
     injmesh plot shape.msh -o shape.png --color size-error --size 0.05
     injmesh paper --out paper-results --quick
@@ -290,6 +292,27 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _whole(text: str) -> int:
+    value = _positive_int(text)
+    if value < 3:
+        raise argparse.ArgumentTypeError(f"must be 3 or more, got {value}")
+    return value
+
+
+def _rate(text: str) -> float:
+    value = _number(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 (off) or positive, got {text!r}")
+    return value
+
+
+def _layers(text: str) -> float:
+    value = _number(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 (off) or positive, got {text!r}")
+    return value
+
+
 def _number(text: str) -> float:
     try:
         value = float(text)
@@ -334,13 +357,24 @@ def build_parser() -> argparse.ArgumentParser:
     gen.add_argument("-o", "--output", required=True, metavar="OUTPUT", help="the mesh file")
     gen.add_argument("--size", metavar="SIZE",
                      help="target edge length: a number, an expression in x and y "
-                     "(\"0.02 + 0.1*hypot(x, y)\"), or a case name; overrides a case's own size")
+                     "(\"0.02 + 0.1*hypot(x, y)\"), a case name, or a .npz file: a raster "
+                     "(arrays x, y, values with values[j, i] at (x[i], y[j]); bilinear) or "
+                     "samples (arrays points (n, 2), values; linear); overrides a case's own size")
     gen.add_argument("--size-min", type=_number, metavar="H",
                      help="graded size: H on the boundary, growing inward")
     gen.add_argument("--growth", type=_number, default=None, metavar="G",
                      help="graded size: increase of h per unit distance from the boundary "
                      "(default 0.2)")
     gen.add_argument("--size-max", type=_number, metavar="H", help="graded size: cap on h")
+    gen.add_argument("--nodes", type=_whole, metavar="N",
+                     help="about N nodes (within 3 %%): the size given (or a uniform one) is "
+                     "scaled to meet the count")
+    gen.add_argument("--gradation", type=_rate, metavar="RATE",
+                     help="limit the growth of h to RATE per unit length, |grad h| <= RATE, so "
+                     "a size that jumps still gives well-shaped triangles (default 0.2; 0: off)")
+    gen.add_argument("--feature-layers", type=_layers, metavar="K",
+                     help="at least K elements across thin parts (channels, necks, spikes): h "
+                     "<= local thickness / K (default 2; 0: off)")
     gen.add_argument("--method", choices=("injection", "distmesh"), default="injection",
                      help="the paper's algorithm (default) or the original DistMesh")
     gen.add_argument("--regions", metavar="FILE",
@@ -393,13 +427,77 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _size(text: str) -> Any:
-    """``--size``: a case name (its h), a number or an expression."""
+    """``--size``: a case name (its h), a ``.npz`` size file, a number or an expression."""
     from .cases import CASES
     from .inputs import parse_size
 
     if text.strip() in CASES:
         return CASES[text.strip()].size
+    if text.strip().lower().endswith(".npz"):
+        return load_size_file(text.strip())
     return parse_size(text)
+
+
+def load_size_file(path: str | Path) -> Any:
+    """A size field from a NumPy ``.npz`` file: a raster or scattered samples.
+
+    Parameters
+    ----------
+    path : str or Path
+        An ``.npz`` archive (``numpy.savez``) holding either ``x`` (nx,), ``y`` (ny,) and
+        ``values`` (ny, nx), with ``values[j, i]`` the size at ``(x[i], y[j])`` (a
+        :class:`~injmesh.sizing.GriddedSize`, bilinear), or ``points`` (n, 2) and ``values``
+        (n,) (a :class:`~injmesh.sizing.ScatteredSize`, linear between the samples).
+
+    Returns
+    -------
+    GriddedSize or ScatteredSize
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    SizeError
+        Not an ``.npz`` archive, a missing array, NaN, an axis that is not strictly monotone, a
+        size that is not positive: the message starts with the file's name.
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, os
+    >>> path = os.path.join(tempfile.mkdtemp(), "h.npz")
+    >>> np.savez(path, x=[0.0, 1.0], y=[0.0, 1.0], values=[[0.1, 0.2], [0.1, 0.2]])
+    >>> load_size_file(path)
+    <GriddedSize: 2 x 2 grid on [0, 1] x [0, 1], h in [0.1, 0.2]>
+    """
+    import pickle
+    import zipfile
+
+    from .sizing import GriddedSize, ScatteredSize, SizeError
+
+    where = f"size file {str(path)!r}"
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"{where} does not exist")
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            arrays = {name: archive[name] for name in archive.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, pickle.UnpicklingError) as exc:
+        raise SizeError(f"{where}: not a NumPy .npz archive of plain arrays ({exc})") from None
+    if not isinstance(arrays, dict) or not arrays:
+        raise SizeError(f"{where}: holds no arrays")
+    kinds = {"gridded": ("x", "y", "values"), "scattered": ("points", "values")}
+    kind = "scattered" if "points" in arrays else "gridded"
+    missing = [k for k in kinds[kind] if k not in arrays]
+    if missing:
+        raise SizeError(
+            f"{where}: no array {', '.join(repr(k) for k in missing)} (a raster needs x, y and "
+            f"values, scattered samples points and values; it holds {', '.join(sorted(arrays))})"
+        )
+    try:
+        if kind == "scattered":
+            return ScatteredSize(arrays["points"], arrays["values"])
+        return GriddedSize(arrays["x"], arrays["y"], arrays["values"])
+    except SizeError as exc:
+        raise SizeError(f"{where}: {exc}") from None
 
 
 def _check_target(path: Path) -> None:
@@ -423,6 +521,13 @@ def _generate(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
         raise ValueError("give either --size or --size-min/--growth/--size-max, not both")
     if graded and args.size_min is None:
         raise ValueError("--growth and --size-max need --size-min")
+    if graded and args.nodes is not None:
+        raise ValueError("--nodes sets the scale of h, --size-min fixes it: give --size (the "
+                         "shape of h) with --nodes")
+    tuned = [f for f, v in (("--nodes", args.nodes), ("--gradation", args.gradation),
+                            ("--feature-layers", args.feature_layers)) if v is not None]
+    if args.method == "distmesh" and tuned:
+        raise ValueError(f"{', '.join(tuned)} apply to --method injection only")
 
     spec, regions, curves = _constraints(args.input, args.regions)
     source = load_domain(spec)
@@ -440,6 +545,8 @@ def _generate(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
         size = _size(args.size)
     elif source.size is not None:
         size = source.size
+    elif args.nodes is not None:
+        size = 1.0  # uniform: --nodes sets its scale
     else:
         raise ValueError(
             f"{args.input!r} brings no size: give --size (a number or an expression in x and y) "
@@ -452,9 +559,15 @@ def _generate(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
+            options: dict[str, Any] = {}
+            if args.gradation is not None:
+                options["gradation"] = args.gradation or None  # 0: off
+            if args.feature_layers is not None:
+                options["feature_layers"] = args.feature_layers or None
             mesh = injmesh.generate(
                 source.domain, size, method=args.method, max_iterations=args.max_iterations,
-                callback=bar, regions=regions or None, curves=curves or None,
+                target_nodes=args.nodes, callback=bar, regions=regions or None,
+                curves=curves or None, **options,
             )
         finally:
             if bar is not None:
@@ -466,8 +579,10 @@ def _generate(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
         for w in caught:
             err.write(f"{PROG}: warning: {str(w.message).splitlines()[0]}\n")
         q = mesh.quality()
+        target = ("" if args.nodes is None
+                  else f" ({100 * (mesh.n_points / args.nodes - 1):+.1f} % of --nodes)")
         out.write(
-            f"wrote {output}: {mesh.n_points} nodes, {mesh.n_triangles} triangles, "
+            f"wrote {output}: {mesh.n_points} nodes{target}, {mesh.n_triangles} triangles, "
             f"q min {q.min():.4f}, q mean {q.mean():.4f}, {mesh.stats.iterations} iterations, "
             f"{seconds:.2f} s\n"
         )

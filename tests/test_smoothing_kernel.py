@@ -1,0 +1,177 @@
+"""The compiled Euler step of Step 3 (kernels/smooth.py) against a plain reference."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from injmesh import Rectangle
+from injmesh.kernels.smooth import adjacency, advance, bar_forces, mean_bar_size, rings
+from injmesh.quality import unique_edges
+from injmesh.smoothing import ATTRACTION, DT, smooth
+from injmesh.triangulation import delaunay
+
+
+def _mesh(seed: int = 0, n: int = 60) -> tuple[np.ndarray, np.ndarray]:
+    p = np.random.default_rng(seed).random((n, 2))
+    return p, delaunay(p).astype(np.int32)
+
+
+def _reference_forces(p, bars, ld, attraction):
+    """Bar forces by scatter over the bars: the textbook form of (2.4), (3.4)."""
+    total = np.zeros_like(p)
+    for (i, j), d in zip(bars, ld, strict=True):
+        vec = p[i] - p[j]
+        lc = np.hypot(*vec)
+        c = -attraction / d if attraction > 0 else (d - lc) / (d * lc)
+        total[i] += c * vec
+        total[j] -= c * vec
+    return total
+
+
+def test_adjacency_matches_unique_edges() -> None:
+    p, tri = _mesh()
+    indptr, adj, eid, bars = adjacency(len(p), tri)
+    assert np.array_equal(bars, unique_edges(tri))
+    for v in range(len(p)):
+        row = adj[indptr[v]:indptr[v + 1]]
+        assert np.all(np.diff(row) > 0), "rows are sorted without repeats"
+        for e in range(indptr[v], indptr[v + 1]):
+            assert sorted((v, int(adj[e]))) == bars[eid[e]].tolist()
+
+
+def test_adjacency_leaves_unused_nodes_empty() -> None:
+    p, tri = _mesh()
+    indptr, adj, _, _ = adjacency(len(p) + 2, tri)
+    assert indptr[-1] == indptr[-3] == len(adj)
+
+
+@pytest.mark.parametrize("attraction", [ATTRACTION, 0.0], ids=["attractive", "spring"])
+def test_gather_forces_equal_scatter_reference(attraction: float) -> None:
+    p, tri = _mesh(1)
+    indptr, adj, eid, bars = adjacency(len(p), tri)
+    mid = 0.5 * (p[bars[:, 0]] + p[bars[:, 1]])
+    ld = 0.1 + 0.05 * mid[:, 0]
+    total = np.zeros_like(p)
+    bar_forces(p, np.arange(len(p)), indptr, adj, eid, ld, attraction, total)
+    np.testing.assert_allclose(total, _reference_forces(p, bars, ld, attraction), rtol=1e-12, atol=1e-14)
+    # hbar is the mean desired length of the node's bars.
+    hbar = mean_bar_size(indptr, eid, ld)
+    deg = np.bincount(bars.ravel(), minlength=len(p))
+    ref = (np.bincount(bars[:, 0], ld, len(p)) + np.bincount(bars[:, 1], ld, len(p))) / deg
+    np.testing.assert_allclose(hbar, ref, rtol=1e-14)
+
+
+def test_advance_steps_clamps_and_defers_near_nodes() -> None:
+    p, tri = _mesh(2)
+    indptr, adj, eid, bars = adjacency(len(p), tri)
+    ld = np.full(len(bars), 0.3)
+    total = np.zeros_like(p)
+    bar_forces(p, np.arange(len(p)), indptr, adj, eid, ld, 0.0, total)
+    hbar = mean_bar_size(indptr, eid, ld)
+    free = np.arange(5, len(p))
+    deep = np.zeros(len(p), dtype=bool)
+    deep[::2] = True
+    q = p.copy()
+    cand, near = np.empty((len(free), 2)), np.empty(len(free), dtype=np.intp)
+    c, worst, at, drift = advance(q, free, total, hbar, DT, 0.05, deep, p, cand, near)
+    step = DT * hbar[:, None] * total
+    length = np.hypot(*step.T)
+    step *= np.minimum(1.0, 0.05 * hbar / np.maximum(length, 1e-300))[:, None]
+    moved = free[deep[free]]
+    np.testing.assert_allclose(q[moved], p[moved] + step[moved], rtol=0, atol=1e-15)
+    assert np.array_equal(q[:5], p[:5]) and np.array_equal(q[~deep], p[~deep])
+    assert np.array_equal(near[:c], free[~deep[free]])
+    np.testing.assert_allclose(cand[:c], p[near[:c]] + step[near[:c]], rtol=0, atol=1e-15)
+    assert worst <= 0.05 + 1e-12 and drift == pytest.approx(worst)
+    assert at in moved
+
+
+def test_rings_grow_by_one_edge_per_step() -> None:
+    p, tri = _mesh(3)
+    indptr, adj, _, bars = adjacency(len(p), tri)
+    seeds = np.array([0], dtype=np.int64)
+    assert np.flatnonzero(rings(indptr, adj, seeds, 0)).tolist() == [0]
+    one = rings(indptr, adj, seeds, 1)
+    assert np.array_equal(np.flatnonzero(one), np.union1d([0], adj[indptr[0]:indptr[1]]))
+    two = rings(indptr, adj, seeds, 2)
+    ref = one.copy()
+    ref[bars[one[bars[:, 0]], 1]] = True
+    ref[bars[one[bars[:, 1]], 0]] = True
+    assert np.array_equal(two, ref)
+
+
+_RUN = """
+import numpy as np, hashlib
+from injmesh import Rectangle, generate
+m = generate(Rectangle((0, 0), (1, 1)), 0.08)
+print(hashlib.sha256(m.points.tobytes() + m.triangles.tobytes()).hexdigest())
+"""
+
+
+def test_smoothing_bit_identical_across_runs_and_thread_counts() -> None:
+    src = str(Path(__file__).resolve().parents[1] / "src")
+    out = []
+    for threads in ("1", "2", "2"):
+        env = dict(os.environ, NUMBA_NUM_THREADS=threads, PYTHONPATH=src)
+        res = subprocess.run([sys.executable, "-c", _RUN], env=env, capture_output=True, text=True,
+                             check=True, timeout=300)
+        out.append(res.stdout.strip())
+    assert len(out[0]) == 64 and out[0] == out[1] == out[2]
+
+
+def test_smooth_keeps_free_nodes_inside_with_deep_skip() -> None:
+    """The inside test is skipped for deep nodes: no node may end up outside anyway."""
+    square = Rectangle((0, 0), (1, 1))
+    rng = np.random.default_rng(4)
+    corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+    p = np.concatenate([corners, 0.02 + 0.96 * rng.random((150, 2))])
+    r = smooth(square, lambda x: np.full(len(x), 0.1), p, n_fixed=4)
+    assert square.sdf(r.points).max() <= 1e-12
+
+
+def test_repair_edits_keep_a_valid_triangulation() -> None:
+    """Split an edge and collapse another on the triangle arrays, then Lawson flips: a valid
+    Delaunay triangulation of the new nodes, same area, every node used."""
+    from injmesh.quality import signed_areas
+    from injmesh.smoothing import _edited, _made_delaunay
+
+    square = Rectangle((0, 0), (1, 1))
+    rng = np.random.default_rng(5)
+    corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+    p = np.concatenate([corners, 0.1 + 0.8 * rng.random((40, 2))])
+    tri = delaunay(p)
+    edges = unique_edges(tri)
+    interior = edges[(edges >= 4).all(axis=1)]
+    split = interior[:1]
+    # A collapse whose two nodes share no node with the split.
+    rest = interior[~np.isin(interior, split).any(axis=1)]
+    collapse = rest[:1]
+    alive = np.ones(len(p), dtype=bool)
+    alive[collapse[:, 1]] = False
+    q = p.copy()
+    q[collapse[0, 0]] = 0.5 * (p[collapse[0, 0]] + p[collapse[0, 1]])
+    q = np.concatenate([q[alive], 0.5 * (p[split[:, 0]] + p[split[:, 1]])])
+    t = _made_delaunay(square, q, _edited(tri, alive, collapse, split), np.zeros((0, 2), np.intp))
+    assert signed_areas(q, t).min() > 0
+    assert np.array_equal(np.unique(t), np.arange(len(q)))
+    assert signed_areas(q, t).sum() == pytest.approx(1.0, rel=1e-12)
+    # Random nodes have no cocircular ties: the flips reach the one Delaunay triangulation.
+    def rows(x: np.ndarray) -> set[tuple[int, ...]]:
+        return {tuple(r) for r in np.sort(x, axis=1).tolist()}
+
+    assert rows(t) == rows(delaunay(q))
+
+
+def test_tri_neighbours_match_triangulation_neighbours() -> None:
+    from injmesh.kernels.smooth import tri_neighbours
+    from injmesh.triangulation import neighbours
+
+    p, tri = _mesh(6, 200)
+    keep = tri[p[tri].mean(axis=1)[:, 0] < 0.6]  # a cut: some edges get one triangle
+    assert np.array_equal(tri_neighbours(len(p), keep), neighbours(keep.astype(np.intp)))
