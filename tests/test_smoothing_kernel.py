@@ -168,10 +168,53 @@ def test_repair_edits_keep_a_valid_triangulation() -> None:
     assert rows(t) == rows(delaunay(q))
 
 
-def test_tri_neighbours_match_triangulation_neighbours() -> None:
-    from injmesh.kernels.smooth import tri_neighbours
-    from injmesh.triangulation import neighbours
 
-    p, tri = _mesh(6, 200)
-    keep = tri[p[tri].mean(axis=1)[:, 0] < 0.6]  # a cut: some edges get one triangle
-    assert np.array_equal(tri_neighbours(len(p), keep), neighbours(keep.astype(np.intp)))
+
+def _seg_dist(q, a, b):
+    ab = b - a
+    t = np.clip(np.dot(q - a, ab) / max(np.dot(ab, ab), 1e-300), 0.0, 1.0)
+    return float(np.hypot(*(q - a - t * ab)))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_slide_kernels_follow_the_barriers(seed: int) -> None:
+    """Boundary sliding on a circle: each step is the half-total plus boundary-spring force,
+    and a projected move is kept exactly when the three barriers of Algorithm 3 allow it."""
+    from injmesh.kernels.smooth import slide_accept, slide_targets
+
+    rng = np.random.default_rng(seed)
+    k = 24
+    ang = np.sort(rng.uniform(0, 2 * np.pi, k))
+    p = np.column_stack([np.cos(ang), np.sin(ang)])
+    slide = np.column_stack([np.arange(k), np.roll(np.arange(k), 1), np.roll(np.arange(k), -1)])
+    slide = slide[::2].copy()  # rows never share a node; their neighbours stay put
+    total = rng.normal(scale=3.0, size=(k, 2))
+    hbar = rng.uniform(0.1, 0.4, k)
+    ld_prev, ld_next = rng.uniform(0.1, 0.4, len(slide)), rng.uniform(0.1, 0.4, len(slide))
+    target = np.empty((len(slide), 2))
+    slide_targets(p, slide, total, hbar, ld_prev, ld_next, DT, target)
+    cand = target / np.hypot(*target.T)[:, None]  # the circle's projection
+    before = p.copy()
+    moved = np.empty(len(slide))
+    slide_accept(p, slide, hbar, cand, moved)
+    kept = 0
+    for r, (b, bp, bn) in enumerate(slide):
+        f = 0.5 * total[b]
+        for o, d in ((bp, ld_prev[r]), (bn, ld_next[r])):
+            vec = before[b] - before[o]
+            lc = np.hypot(*vec)
+            f = f + 0.5 * (d - lc) / (d * lc) * vec
+        assert np.allclose(target[r], before[b] + DT * hbar[b] * f, rtol=1e-12, atol=1e-12)
+        old, c = before[b], cand[r]
+        gap = min(np.hypot(*(old - before[bp])), np.hypot(*(old - before[bn])))
+        step = np.hypot(*(c - old))
+        stray = min(_seg_dist(c, before[bp], old), _seg_dist(c, old, before[bn]))
+        allow = 2 * _seg_dist(old, before[bp], before[bn]) + 0.1 * step
+        new_gap = min(np.hypot(*(c - before[bp])), np.hypot(*(c - before[bn])))
+        ok = step < 0.5 * gap and stray <= allow + 1e-9 * hbar[b] and new_gap >= min(gap, 0.5 * hbar[b])
+        assert np.array_equal(p[b], c if ok else old)
+        assert moved[r] == pytest.approx(step / hbar[b] if ok else 0.0, rel=1e-12)
+        kept += ok
+    untouched = np.setdiff1d(np.arange(k), slide[:, 0])
+    assert np.array_equal(p[untouched], before[untouched])
+    assert 0 < kept  # the random forces leave some steps inside the barriers

@@ -82,8 +82,19 @@ def estimate_nodes(
     an estimate used for the node budget and the tracing resolution, not a bound (a feature of
     h narrower than every sample spacing can still be missed).
     """
+    from dataclasses import replace
+
+    from .sizing import SizeFunction
+
+    if isinstance(h, SizeFunction) and h.domain is domain:
+        # h is asked only where d <= 0 here: the restriction's own sdf call would repeat ours.
+        h = replace(h, domain=None)
     x0, y0, x1, y1 = domain.bbox
     side = max(x1 - x0, y1 - y0) / cells
+    # Inside/outside of the samples, evaluated only near the boundary where that is cheaper.
+    from .sizing.background import inside_test
+
+    fast_inside = inside_test(domain, side / 2)
     i, j = np.meshgrid(np.arange(cells), np.arange(cells))
     centres = np.stack([x0 + (i.ravel() + 0.5) * side, y0 + (j.ravel() + 0.5) * side], axis=1)
     # The quarters' centres; each sample is jittered within its quarter (see below).
@@ -98,7 +109,7 @@ def estimate_nodes(
         c = np.arange(k)
         jitter = np.stack([(c * 0.7548776662466927) % 1.0, (c * 0.5698402909980532) % 1.0], axis=1) - 0.5
         q = (centres[None, :, :] + side * (quarter[:, None, :] + 0.5 * jitter[None, :, :])).reshape(-1, 2)
-        inside = domain.sdf(q) <= 0
+        inside = fast_inside(q) if fast_inside is not None else domain.sdf(q) <= 0
         flat = np.full(len(q), np.inf)
         if inside.any():
             any_inside = True

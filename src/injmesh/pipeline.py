@@ -382,7 +382,11 @@ def _nearest_tags(points: FloatArray, edges: NDArray[np.intp], walls: NDArray[np
 
 def _capped(h: Callable[[FloatArray], FloatArray], cap: float) -> Callable[[FloatArray], FloatArray]:
     """h limited to ``cap`` (the domain's diameter): a larger size asks for nothing coarser than
-    the fewest nodes the boundary needs, and keeps every length the stages compute finite."""
+    the fewest nodes the boundary needs, and keeps every length the stages compute finite.
+    A constant h stays a constant :class:`SizeFunction`, so the stages can see that it is."""
+    value = getattr(h, "constant", None)
+    if value is not None:
+        return as_size_function(min(float(value), cap))
 
     def capped(p: FloatArray) -> FloatArray:
         return np.minimum(h(p), cap)
@@ -397,7 +401,11 @@ def _clean(domain: Domain, h: SizeFunction) -> tuple[Domain, dict[str, int]]:
     GIS outlines carry vertices 1e-7 apart; meshed as given they make a duplicate node and a
     triangle of zero area.  Changes are logged and kept in ``mesh.stats.cleaning``.
     """
-    h_min, _ = estimate_nodes(domain, h.restricted(domain))
+    # A constant h (capped at the diameter, as the stages cap it) is its own minimum.
+    if h.constant is not None:
+        h_min = min(h.constant, domain.diameter)
+    else:
+        h_min = estimate_nodes(domain, h.restricted(domain))[0]
     cleaned, report = domain.cleaned(CLEAN * h_min)
     changes = {k: int(v) for k, v in report.items() if v}
     if changes:
@@ -421,8 +429,7 @@ def _target_size(
         target = h.restricted(domain)
     else:
         try:
-            target = effective_size(h, domain, layers=feature_layers if feature_layers is not None
-                                    else np.inf, rate=gradation)
+            target = effective_size(h, domain, layers=feature_layers, rate=gradation)
         except GeometryError:
             # The background grid saw no boundary: let the domain's own check say why (empty,
             # or spilling out of its bbox), else report what the grid found.

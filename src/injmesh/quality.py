@@ -16,6 +16,25 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
 
 
+def _pts(points: FloatArray) -> FloatArray:
+    return np.ascontiguousarray(points, dtype=np.float64)
+
+
+def _tri(triangles: IntArray, n: int | None = None) -> NDArray[np.int64]:
+    """Triangles as C-contiguous int64 ``(m, 3)``: the one signature the kernels compile for.
+
+    The kernels do not check bounds: an index outside ``0 .. n-1`` raises here instead, as
+    NumPy's indexing would have (with ``n=None`` only negative indices are refused).
+    """
+    tri = np.ascontiguousarray(np.reshape(triangles, (-1, 3)), dtype=np.int64)
+    if len(tri):
+        lo, hi = int(tri.min()), int(tri.max())
+        if lo < 0 or (n is not None and hi >= n):
+            bad = lo if lo < 0 else hi
+            raise IndexError(f"triangles refer to node {bad}, outside 0..{'' if n is None else n - 1}")
+    return tri
+
+
 def edge_lengths(points: FloatArray, triangles: IntArray) -> FloatArray:
     """Side lengths of every triangle.
 
@@ -24,22 +43,17 @@ def edge_lengths(points: FloatArray, triangles: IntArray) -> FloatArray:
     (m, 3) array
         Column k is the length of the side opposite vertex k.
     """
-    p = points[triangles]
-    return np.stack(
-        [
-            np.hypot(*(p[:, 2] - p[:, 1]).T),
-            np.hypot(*(p[:, 0] - p[:, 2]).T),
-            np.hypot(*(p[:, 1] - p[:, 0]).T),
-        ],
-        axis=1,
-    )
+    from .kernels import mesh
+
+    p = _pts(points)
+    return mesh.edge_lengths(p, _tri(triangles, len(p)))  # type: ignore[no-any-return]
 
 
 def triangle_quality(points: FloatArray, triangles: IntArray) -> FloatArray:
     """Quality q of each triangle, Eq. (5.1): ``(b+c-a)(c+a-b)(a+b-c) / (abc)``.
 
     q is twice the ratio of inradius to circumradius: 1 for an equilateral triangle, 0 for a
-    degenerate one.
+    degenerate one (0 too where a side has length 0).
 
     Examples
     --------
@@ -48,18 +62,26 @@ def triangle_quality(points: FloatArray, triangles: IntArray) -> FloatArray:
     >>> float(triangle_quality(p, np.array([[0, 1, 2]]))[0])  # doctest: +ELLIPSIS
     1.0...
     """
-    a, b, c = edge_lengths(points, triangles).T
-    with np.errstate(invalid="ignore", divide="ignore"):
-        q = (b + c - a) * (c + a - b) * (a + b - c) / (a * b * c)
-    return np.nan_to_num(q, nan=0.0)
+    from .kernels import mesh
+
+    p = _pts(points)
+    return mesh.triangle_quality(p, _tri(triangles, len(p)))  # type: ignore[no-any-return]
 
 
 def signed_areas(points: FloatArray, triangles: IntArray) -> FloatArray:
-    """Signed area of each triangle, positive when counter-clockwise."""
-    p = points[triangles]
-    u = p[:, 1] - p[:, 0]
-    v = p[:, 2] - p[:, 0]
-    return 0.5 * (u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0])
+    """Signed area of each triangle, positive when counter-clockwise.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> p = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> signed_areas(p, np.array([[0, 1, 2], [0, 2, 1]])).tolist()
+    [0.5, -0.5]
+    """
+    from .kernels import mesh
+
+    p = _pts(points)
+    return mesh.signed_areas(p, _tri(triangles, len(p)))  # type: ignore[no-any-return]
 
 
 def triangle_angles(points: FloatArray, triangles: IntArray) -> FloatArray:
@@ -72,13 +94,23 @@ def triangle_angles(points: FloatArray, triangles: IntArray) -> FloatArray:
 
 
 def unique_edges(triangles: IntArray) -> IntArray:
-    """All distinct edges of a triangulation, ``(k, 2)`` with ``i < j``, sorted."""
-    e = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    e.sort(axis=1)
-    # One int64 key per edge: 1-D unique is much faster than unique over rows.
-    n = int(triangles.max()) + 1 if len(triangles) else 1
-    key = np.unique(e[:, 0].astype(np.int64) * n + e[:, 1])
-    return np.stack([key // n, key % n], axis=1).astype(np.intp)
+    """All distinct edges of a triangulation, ``(k, 2)`` with ``i < j``, sorted by ``(i, j)``.
+
+    Linear time: each side is filed under its smaller node and each node's few sides are sorted
+    (:func:`injmesh.kernels.mesh.edge_index`), no global sort.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> unique_edges(np.array([[0, 1, 2], [2, 1, 3]])).tolist()
+    [[0, 1], [0, 2], [1, 2], [1, 3], [2, 3]]
+    """
+    from .kernels import mesh
+
+    tri = _tri(triangles)
+    if len(tri) == 0:
+        return np.zeros((0, 2), dtype=np.intp)
+    return mesh.unique_edges(tri, int(tri.max()) + 1).astype(np.intp, copy=False)  # type: ignore[no-any-return]
 
 
 @dataclass(frozen=True)

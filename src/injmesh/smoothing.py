@@ -48,10 +48,11 @@ Other choices the paper leaves open:
   node whose step would leave the domain keeps its place for that step.
 * **Re-triangulation.**  When some node has moved more than ``RETRIANGULATE * hbar`` since the
   last triangulation (DistMesh's ``ttol``), and once at the end, so the result is Delaunay.
-  A full triangulation runs only at the start (and where flips meet an inverted triangle,
-  and in the boundary recovery below); otherwise the mesh is made Delaunay again by Lawson flips with exact predicates on the kept
-  triangles (``kernels.delaunay.flip_to_delaunay`` on the compact arrays and their neighbour
-  table, kept between steps), which also keeps its boundary edges.
+  A full triangulation (our exact Delaunay kernel) runs only at the start, where flips meet
+  an inverted triangle, and in the boundary recovery below; otherwise the mesh is made
+  Delaunay again by Lawson flips with exact predicates on the kept triangles
+  (``kernels.delaunay.flip_to_delaunay`` on the compact arrays and their neighbour table,
+  kept between steps), which also keeps its boundary edges.
 * **The step** is compiled (:mod:`injmesh.kernels.smooth`): the bars are node neighbour lists
   in CSR form built once per connectivity, and each node gathers its own bar forces in a fixed
   order, so the result is bit-identical whatever the thread count (the kernels are serial).
@@ -290,7 +291,7 @@ class _Relaxation:
         """Take a new triangulation (from scratch): its neighbour table for the flips."""
         t32 = np.ascontiguousarray(tri, dtype=np.int32)
         self._t32 = t32
-        self._nbr = self._k.tri_neighbours(len(self.p), t32)
+        self._nbr = _neighbours32(t32, len(self.p))
         self._con = np.zeros(t32.shape, dtype=np.uint8)
         self._vt = np.full(len(self.p), -1, dtype=np.int32)
         self._vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
@@ -311,7 +312,7 @@ class _Relaxation:
         indptr, adj, eid, bars = k.adjacency(len(p), self._t32)
         ld = np.ascontiguousarray(self.h(0.5 * (p[bars[:, 0]] + p[bars[:, 1]])), dtype=np.float64)
         hbar = k.mean_bar_size(indptr, eid, ld)
-        # A node in no triangle (Qhull drops coincident points) feels no force; its own h
+        # A node in no triangle (the triangulation leaves out coincident points) feels no force; its own h
         # keeps the relative measures finite.
         lonely = np.flatnonzero(indptr[1:] == indptr[:-1])
         if len(lonely):
@@ -409,40 +410,24 @@ def _slide(
     ``ld`` the desired lengths of the bars to the previous and next boundary neighbours.
     Returns each node's move over its hbar.
     """
-    b, bp, bn = slide.T
-    old = p[b]
-    hb = hbar[b]
+    from .kernels.smooth import slide_accept, slide_targets
+
     # Half the node's total force, half its two boundary bars (a 1-D spring along the boundary,
     # as in balancing): all of the former lets the interior squeeze boundary edges to 0.7 h;
-    # only the latter leaves bad triangles at the boundary.
-    fb = 0.5 * (total[b] + _spring(old, p[bp], ld[0]) + _spring(old, p[bn], ld[1]))
-    cand = project(old + DT * hb[:, None] * fb)
-    # Barriers as in Algorithm 3: a step shorter than half the gap to either neighbour can
-    # neither overtake it nor jump across a corner to another curve.
-    gap = np.minimum(np.hypot(*(old - p[bp]).T), np.hypot(*(old - p[bn]).T))
-    step = np.hypot(*(cand - old).T)
-    ok = step < 0.5 * gap
-    # The projection must keep the node on its own stretch of boundary, next to the two
-    # segments it had, not across a slit or notch narrower than the step (there the nearest
-    # boundary point is on the opposite wall).  A curved boundary strays from the two segments
-    # by about its own sagitta there, the distance of the node from its neighbours' chord; a
-    # straight wall by nothing.
-    stray = np.minimum(_segment_distance(cand, p[bp], old), _segment_distance(cand, old, p[bn]))
-    allow = 2.0 * _segment_distance(old, p[bp], p[bn]) + 0.1 * step
-    ok &= stray <= allow + 1e-9 * hb
-    # Nor may a step close a gap below half of h: at a sharp corner the interior pushes
-    # boundary nodes into the tip, where they would crowd without end.
-    new_gap = np.minimum(np.hypot(*(cand - p[bp]).T), np.hypot(*(cand - p[bn]).T))
-    ok &= new_gap >= np.minimum(gap, 0.5 * hb)
-    p[b[ok]] = cand[ok]
-    return np.where(ok, step, 0.0) / hb
-
-
-def _spring(u: FloatArray, v: FloatArray, ld: FloatArray) -> FloatArray:
-    """Spring force of bars u-v on u, rest length ``ld``."""
-    vec = u - v
-    lc = np.maximum(np.hypot(*vec.T), 1e-300)
-    return ((ld - lc) / (ld * lc))[:, None] * vec
+    # only the latter leaves bad triangles at the boundary.  Then the barriers of Algorithm 3:
+    # a step shorter than half the gap to either neighbour can neither overtake it nor jump
+    # across a corner to another curve; the projection must keep the node on its own stretch
+    # of boundary, next to the two segments it had, not across a slit or notch narrower than
+    # the step (there the nearest boundary point is on the opposite wall; a curved boundary
+    # strays from the two segments by about its own sagitta, a straight wall by nothing); nor
+    # may a step close a gap below half of h (at a sharp corner the interior pushes boundary
+    # nodes into the tip, where they would crowd without end).
+    target = np.empty((len(slide), 2))
+    slide_targets(p, slide, total, hbar, ld[0], ld[1], DT, target)
+    cand = np.ascontiguousarray(project(target), dtype=np.float64)
+    moved = np.empty(len(slide))
+    slide_accept(p, slide, hbar, cand, moved)
+    return moved
 
 
 def _segment_distance(q: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
@@ -538,7 +523,7 @@ def smooth(
         on_boundary[iseg.ravel()] = True
         on_boundary[slide[:, 0]] = True
         p = _optimize(domain, p, tri, movable, on_boundary, np.concatenate([wall, iseg]), project)
-    # Drop nodes that no triangle uses (Qhull leaves out coincident points, for example).
+    # Drop nodes that no triangle uses (the triangulation leaves out coincident points, for example).
     used = np.zeros(len(p), dtype=bool)
     used[tri.ravel()] = True
     remap = np.cumsum(used) - 1
@@ -647,14 +632,20 @@ def _edited(tri: IntArray, alive: NDArray[np.bool_], collapse: IntArray, split: 
     return np.asarray(index[t], dtype=np.intp)
 
 
+def _neighbours32(t32: NDArray[np.int32], n: int) -> NDArray[np.int32]:
+    """The flip kernel's neighbour table (int32, -1 on the hull) of the triangles ``t32``."""
+    from .kernels.mesh import neighbours
+
+    return np.asarray(neighbours(t32, n), dtype=np.int32)
+
+
 def _made_delaunay(domain: Domain, p: FloatArray, tri: IntArray, walls: IntArray) -> IntArray:
     """``tri`` made Delaunay by Lawson flips (exact predicates; edges with one triangle stay),
     or the domain's triangulation from scratch when ``tri`` has an inverted or flat triangle."""
     from .kernels.delaunay import flip_to_delaunay as flip_kernel
-    from .kernels.smooth import tri_neighbours
 
     t32 = np.ascontiguousarray(tri, dtype=np.int32)
-    nbr = tri_neighbours(len(p), t32)
+    nbr = _neighbours32(t32, len(p))
     vt = np.full(len(p), -1, dtype=np.int32)
     vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
     if len(t32) == 0 or flip_kernel(p, t32, nbr, np.zeros(t32.shape, dtype=np.uint8), vt) < 0:

@@ -7,6 +7,17 @@ its algorithm (no NumPy twin) and is deterministic: same inputs, bit-identical o
 * :mod:`injmesh.kernels.predicates` -- adaptive-precision exact ``orient2d`` and ``incircle``.
 * :mod:`injmesh.kernels.delaunay` -- incremental Delaunay triangulation with a live adjacency
   structure (flips, point location, local insertion and removal, edge recovery).
+* :mod:`injmesh.kernels.mesh` -- loops over plain mesh arrays: distinct edges, neighbours and
+  boundary edges without a global sort, areas, side lengths, quality, and the flood fill that
+  tells inside from outside.
+* :mod:`injmesh.kernels.smooth` -- Step 3's Euler step in gather form over node neighbour lists
+  (bar forces, hbar, the capped step), k-rings and edge look-ups for local repair.
+* :mod:`injmesh.kernels.brep`, :mod:`injmesh.kernels.fastmarch`, :mod:`injmesh.kernels.interp`
+  -- B-rep distance and projection (BVH), fast marching for gradation, size-field interpolation.
+* :mod:`injmesh.kernels.inject` -- Advancing Node Injection: the proximity grid (nodes inserted
+  layer by layer, nearest-node and wall tests) and the per-layer front geometry.
+* :mod:`injmesh.kernels.raster` -- inside/outside of background grid nodes by scanlines over
+  an exact boundary.
 
 Every kernel is ``@njit(cache=True)``: the first call compiles (tens of seconds for the whole
 Delaunay module on a cold cache) and later processes load the machine code from

@@ -1175,6 +1175,9 @@ def recover_edge(points, tri, nbr, constrained, vt, i, j):  # type: ignore[no-un
     if i == j or vt[i] < 0 or vt[j] < 0:
         return ERR_NOT_FOUND
     t, k = find_edge(tri, nbr, vt, i, j)
+    if t < 0:
+        # On compact arrays a hull edge has one triangle, which may hold it as j -> i.
+        t, k = find_edge(tri, nbr, vt, j, i)
     if t >= 0:
         constrained[t, k] = 1
         u = nbr[t, k]
@@ -1182,26 +1185,30 @@ def recover_edge(points, tri, nbr, constrained, vt, i, j):  # type: ignore[no-un
             constrained[u, _corner(nbr, u, t)] = 1
         return OK
     # The triangle at i whose wedge holds j, then walk along the segment collecting the edges
-    # it crosses, each as (left, right) of the directed line i -> j.
+    # it crosses, each as (left, right) of the directed line i -> j.  The rotation around i is
+    # counter-clockwise, then clockwise from the start if it met the hull of compact arrays.
     t0 = vt[i]
-    t = t0
     start = -1
-    for _ in range(tri.shape[0] + 1):
-        ki = _corner(tri, t, i)
-        b = tri[t, (ki + 1) % 3]
-        c = tri[t, (ki + 2) % 3]
-        if b >= 0 and c >= 0:
-            ob = _orient(points, i, b, j)
-            oc = _orient(points, i, c, j)
-            if ob >= 0.0 and oc <= 0.0:
-                if ob == 0.0:
-                    return -(10 + b)
-                if oc == 0.0:
-                    return -(10 + c)
-                start = t
+    for direction in range(2):
+        t = t0
+        for _ in range(tri.shape[0] + 1):
+            ki = _corner(tri, t, i)
+            b = tri[t, (ki + 1) % 3]
+            c = tri[t, (ki + 2) % 3]
+            if b >= 0 and c >= 0:
+                ob = _orient(points, i, b, j)
+                oc = _orient(points, i, c, j)
+                if ob >= 0.0 and oc <= 0.0:
+                    if ob == 0.0:
+                        return -(10 + b)
+                    if oc == 0.0:
+                        return -(10 + c)
+                    start = t
+                    break
+            t = nbr[t, (ki + 1) % 3] if direction == 0 else nbr[t, (ki + 2) % 3]
+            if t < 0 or t == t0:
                 break
-        t = nbr[t, (ki + 1) % 3]
-        if t < 0 or t == t0:
+        if start >= 0 or t == t0:
             break
     if start < 0:
         return ERR_LOOP
@@ -1287,6 +1294,48 @@ def recover_edge(points, tri, nbr, constrained, vt, i, j):  # type: ignore[no-un
     if flips < 0:
         return ERR_LOOP
     return OK
+
+
+@njit(cache=True)
+def recover_segments(points, tri, nbr, constrained, seg):  # type: ignore[no-untyped-def]
+    """Recover every segment of ``seg (k, 2)`` as a constrained edge; one status per segment.
+
+    Works on compact arrays (``-1`` beyond the hull) as well as on the live structure.  The
+    segments that are already edges are marked constrained first, so recovering the others
+    (whose final Lawson pass flips unconstrained edges only) cannot flip them away.  Statuses
+    as :func:`recover_edge`; ERR_NOT_FOUND for an index outside the points.
+    """
+    n = points.shape[0]
+    vt = np.full(n, -1, dtype=np.int32)
+    for t in range(tri.shape[0]):
+        if tri[t, 0] == DEAD:
+            continue
+        for k in range(3):
+            if tri[t, k] >= 0:
+                vt[tri[t, k]] = t
+    ns = seg.shape[0]
+    status = np.zeros(ns, dtype=np.int64)
+    missing = np.zeros(ns, dtype=np.bool_)
+    for s in range(ns):
+        i = seg[s, 0]
+        j = seg[s, 1]
+        if i < 0 or j < 0 or i >= n or j >= n or i == j or vt[i] < 0 or vt[j] < 0:
+            status[s] = ERR_NOT_FOUND
+            continue
+        t, k = find_edge(tri, nbr, vt, i, j)
+        if t < 0:
+            t, k = find_edge(tri, nbr, vt, j, i)
+        if t < 0:
+            missing[s] = True
+            continue
+        constrained[t, k] = 1
+        u = nbr[t, k]
+        if u >= 0:
+            constrained[u, _corner(nbr, u, t)] = 1
+    for s in range(ns):
+        if missing[s]:
+            status[s] = recover_edge(points, tri, nbr, constrained, vt, seg[s, 0], seg[s, 1])
+    return status
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1568,5 +1617,6 @@ __all__ = [
     "insert_point",
     "locate",
     "recover_edge",
+    "recover_segments",
     "remove_vertex",
 ]

@@ -23,8 +23,84 @@ Examples
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
+
+
+@njit(cache=True, inline="always")
+def _norm(x, y):  # type: ignore[no-untyped-def]
+    # Not np.hypot: numba's hypot is a libm call per pair, ~9x slower in these loops, and the
+    # coordinates here are differences of nearby points (no overflow to guard against).
+    return math.sqrt(x * x + y * y)
+
+
+@njit(cache=True, inline="always")
+def _segment_distance(qx, qy, ax, ay, bx, by):  # type: ignore[no-untyped-def]
+    abx, aby = bx - ax, by - ay
+    t = ((qx - ax) * abx + (qy - ay) * aby) / max(abx * abx + aby * aby, 1e-300)
+    t = min(max(t, 0.0), 1.0)
+    return _norm(qx - ax - t * abx, qy - ay - t * aby)
+
+
+@njit(cache=True)
+def slide_targets(p, slide, total, hbar, ld_prev, ld_next, dt, out):  # type: ignore[no-untyped-def]
+    """Unprojected Euler step of each sliding node (rows ``(node, previous, next)``).
+
+    The force is half the node's total bar force and half the spring force (rest length
+    ``ld_prev``, ``ld_next``) of its two boundary bars; ``out[r]`` gets ``p + dt * hbar * f``.
+    """
+    for r in range(slide.shape[0]):
+        b = slide[r, 0]
+        fx, fy = total[b, 0], total[b, 1]
+        for s in range(2):
+            o = slide[r, 1 + s]
+            d = ld_prev[r] if s == 0 else ld_next[r]
+            vx, vy = p[b, 0] - p[o, 0], p[b, 1] - p[o, 1]
+            lc = max(_norm(vx, vy), 1e-300)
+            c = (d - lc) / (d * lc)
+            fx += c * vx
+            fy += c * vy
+        hb = hbar[b]
+        out[r, 0] = p[b, 0] + dt * hb * 0.5 * fx
+        out[r, 1] = p[b, 1] + dt * hb * 0.5 * fy
+
+
+@njit(cache=True)
+def slide_accept(p, slide, hbar, cand, moved):  # type: ignore[no-untyped-def]
+    """Take the projected positions ``cand`` of the sliding nodes where the barriers allow.
+
+    A step is kept when it is shorter than half the gap to either boundary neighbour, when the
+    projection stays next to the node's own two segments (within twice its sagitta and a tenth
+    of the step), and when it does not close a gap below ``min(gap, hbar / 2)``.  Every test
+    reads the positions from before this call (moves are applied after all rows are tested),
+    so the result does not depend on the order of the rows.  ``moved[r]`` gets the move over
+    hbar (0 where refused).
+    """
+    k = slide.shape[0]
+    ok = np.zeros(k, dtype=np.bool_)
+    for r in range(k):
+        b, bp, bn = slide[r, 0], slide[r, 1], slide[r, 2]
+        ox, oy = p[b, 0], p[b, 1]
+        cx, cy = cand[r, 0], cand[r, 1]
+        px, py, nx, ny = p[bp, 0], p[bp, 1], p[bn, 0], p[bn, 1]
+        hb = hbar[b]
+        gap = min(_norm(ox - px, oy - py), _norm(ox - nx, oy - ny))
+        step = _norm(cx - ox, cy - oy)
+        good = step < 0.5 * gap
+        stray = min(_segment_distance(cx, cy, px, py, ox, oy), _segment_distance(cx, cy, ox, oy, nx, ny))
+        allow = 2.0 * _segment_distance(ox, oy, px, py, nx, ny) + 0.1 * step
+        good = good and stray <= allow + 1e-9 * hb
+        new_gap = min(_norm(cx - px, cy - py), _norm(cx - nx, cy - ny))
+        good = good and new_gap >= min(gap, 0.5 * hb)
+        ok[r] = good
+        moved[r] = step / hb if good else 0.0
+    for r in range(k):
+        if ok[r]:
+            b = slide[r, 0]
+            p[b, 0] = cand[r, 0]
+            p[b, 1] = cand[r, 1]
 
 
 @njit(cache=True)
@@ -139,7 +215,7 @@ def bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total):  # type: igno
             if attraction > 0.0:
                 c = -attraction / d
             else:
-                lc = max(np.hypot(vx, vy), 1e-300)
+                lc = max(_norm(vx, vy), 1e-300)
                 c = (d - lc) / (d * lc)
             fx += c * vx
             fy += c * vy
@@ -166,7 +242,7 @@ def advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near):  # ty
         hb = hbar[i]
         sx = dt * hb * total[i, 0]
         sy = dt * hb * total[i, 1]
-        length = np.hypot(sx, sy)
+        length = _norm(sx, sy)
         limit = step_cap * hb
         if length > limit:
             sx *= limit / length
@@ -179,7 +255,7 @@ def advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near):  # ty
             if mv > worst:
                 worst = mv
                 at = i
-            dr = np.hypot(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) / hb
+            dr = _norm(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) / hb
             if dr > drift:
                 drift = dr
         else:
@@ -238,37 +314,3 @@ def has_edges(indptr, adj, pairs):  # type: ignore[no-untyped-def]
                 hi = mid
         out[r] = lo < indptr[i + 1] and adj[lo] == j
     return out
-
-
-@njit(cache=True)
-def tri_neighbours(n, tri):  # type: ignore[no-untyped-def]
-    """``nbr (m, 3) int32``: the triangle across the edge opposite each corner, -1 where the
-    edge has one triangle (the convention of ``triangulation.neighbours``)."""
-    m = tri.shape[0]
-    cnt = np.zeros(n + 1, dtype=np.int64)
-    for t in range(m):
-        for k in range(3):
-            cnt[tri[t, k] + 1] += 1
-    start = np.cumsum(cnt)
-    fill = start[:n].copy()
-    inc = np.empty(start[n], dtype=np.int32)
-    for t in range(m):
-        for k in range(3):
-            v = tri[t, k]
-            inc[fill[v]] = t
-            fill[v] += 1
-    nbr = np.full((m, 3), -1, dtype=np.int32)
-    for t in range(m):
-        for k in range(3):
-            b = tri[t, (k + 1) % 3]
-            c = tri[t, (k + 2) % 3]
-            # The other triangle has the edge as c -> b.
-            for e in range(start[c], start[c + 1]):
-                u = inc[e]
-                if u == t:
-                    continue
-                if (tri[u, 0] == c and tri[u, 1] == b) or (tri[u, 1] == c and tri[u, 2] == b) or (
-                        tri[u, 2] == c and tri[u, 0] == b):
-                    nbr[t, k] = u
-                    break
-    return nbr

@@ -15,13 +15,14 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .. import _tolerances as tol
-from ..geometry import Domain, GeometryError
+from ..geometry import BRep, Circle, Domain, GeometryError, Rectangle
 from ._core import SizeError, SizeFunction
 
 FloatArray = NDArray[np.float64]
@@ -44,6 +45,8 @@ THICK_RATIO = 3.0
 THIN_REFINEMENTS = 12
 #: Points per sdf call while sampling the grid (bounds the memory of sdf temporaries).
 CHUNK = 1 << 18
+#: With an exact boundary, d is evaluated only at nodes within NEAR spacings of it.
+NEAR = 2.0
 
 
 @dataclass(frozen=True)
@@ -154,19 +157,99 @@ def make_background(domain: Domain, spacing: float, capped: bool = False, check:
     nx, ny = cells(domain.bbox, spacing)
     x = x0 + spacing * (np.arange(nx, dtype=np.float64) - PAD)
     y = y0 + spacing * (np.arange(ny, dtype=np.float64) - PAD)
-    d = np.empty(nx * ny)
-    rows = max(1, CHUNK // nx)
-    for j0 in range(0, ny, rows):
-        yy = y[j0 : j0 + rows]
-        X, Y = np.meshgrid(x, yy)
-        d[j0 * nx : j0 * nx + X.size] = domain.sdf(np.stack([X.ravel(), Y.ravel()], axis=1))
-    grid = Background(x=x, y=y, d=d.reshape(ny, nx), spacing=float(spacing), capped=capped)
+    grid = Background(x=x, y=y, d=_sdf_on_grid(domain, x, y, float(spacing)), spacing=float(spacing),
+                      capped=capped)
     if check and not grid.inside.any():
         raise SizeError(
             f"no background grid node (spacing {spacing:g}) lies inside the domain: it is thinner "
             "than the grid; pass a smaller spacing"
         )
     return grid
+
+
+def exact_boundary(domain: Domain) -> BRep | None:
+    """The domain's exact boundary (segments and arcs, domain on the left), if it has one."""
+    if isinstance(domain, BRep):
+        return domain
+    exact = getattr(domain, "exact_brep", None)
+    out = exact() if callable(exact) else None
+    return out if isinstance(out, BRep) else None
+
+
+def _sdf_on_grid(domain: Domain, x: FloatArray, y: FloatArray, spacing: float) -> FloatArray:
+    """d at the grid nodes, ``(ny, nx)``; exact within ``NEAR`` spacings of the boundary.
+
+    With an exact boundary the sign of every node comes from scanlines over the boundary
+    polylines (:mod:`injmesh.kernels.raster`) and only the nodes near the boundary are
+    evaluated; the others carry ``-NEAR * spacing`` inside and ``+NEAR * spacing`` outside, a
+    lower bound of ``|d|`` there (nothing reads the magnitude away from the boundary).  Other
+    domains, and circles and rectangles, are evaluated at every node.
+    """
+    nx, ny = len(x), len(y)
+    # A circle's or a rectangle's d is a closed formula, cheaper than the scan.
+    brep = None if isinstance(domain, (Circle, Rectangle)) else exact_boundary(domain)
+    if brep is None:
+        X, Y = np.meshgrid(x, y)
+        return _sdf_chunked(domain, np.stack([X.ravel(), Y.ravel()], axis=1)).reshape(ny, nx)
+    from ..kernels.raster import scan
+
+    # Polylines within spacing / 8 of the boundary (arcs are sampled finer than ``spacing`` and
+    # at 16 points per turn at least), cut so that every segment's box is about a cell.
+    loops = [densify(np.asarray(loop, dtype=np.float64), spacing) for loop in brep.boundary_loops(spacing)
+             if len(loop) >= 2]
+    a = np.concatenate(loops) if loops else np.empty((0, 2))
+    b = np.concatenate([np.roll(loop, -1, axis=0) for loop in loops]) if loops else np.empty((0, 2))
+    reach = NEAR * spacing
+    inside, near = scan(x, y, a, b, reach)
+    d = np.where(inside, -reach, reach)
+    if near.any():
+        jj, ii = np.nonzero(near)
+        d[jj, ii] = _sdf_chunked(domain, np.stack([x[ii], y[jj]], axis=1))
+    return d
+
+
+def inside_test(domain: Domain, spacing: float) -> Callable[[FloatArray], BoolArray] | None:
+    """A fast ``domain.sdf(p) <= 0`` for many points, or None where the plain call is as fast.
+
+    For a domain with an exact boundary (and an sdf more costly than a closed formula), d is
+    sampled once on a grid of ``spacing`` (:func:`_sdf_on_grid`: scanlines, d near the
+    boundary).  A point in a grid cell whose four corners have one sign and ``|d|`` above
+    ``0.75 * spacing`` has that sign too (d is 1-Lipschitz and every point of the cell is within
+    ``spacing / sqrt(2)`` of a corner); only the other points are evaluated.  The answers are
+    those of ``domain.sdf(p) <= 0``.
+    """
+    if isinstance(domain, (Circle, Rectangle)) or exact_boundary(domain) is None:
+        return None
+    grid = make_background(domain, spacing, check=False)
+    d = grid.d
+    ny, nx = d.shape
+    d00, d10, d01, d11 = d[:-1, :-1], d[:-1, 1:], d[1:, :-1], d[1:, 1:]
+    lo = np.minimum(np.minimum(np.abs(d00), np.abs(d10)), np.minimum(np.abs(d01), np.abs(d11)))
+    neg = (d00 < 0) & (d10 < 0) & (d01 < 0) & (d11 < 0)
+    pos = (d00 > 0) & (d10 > 0) & (d01 > 0) & (d11 > 0)
+    known = (neg | pos) & (lo > 0.75 * grid.spacing)
+
+    def inside(p: FloatArray) -> BoolArray:
+        i = np.floor((p[:, 0] - grid.x[0]) / grid.spacing)
+        j = np.floor((p[:, 1] - grid.y[0]) / grid.spacing)
+        ok = (i >= 0) & (i < nx - 1) & (j >= 0) & (j < ny - 1)
+        ii, jj = np.where(ok, i, 0).astype(np.intp), np.where(ok, j, 0).astype(np.intp)
+        sure = ok & known[jj, ii]
+        out = np.where(sure, neg[jj, ii], False)
+        rest = np.flatnonzero(~sure)
+        if len(rest):
+            out[rest] = domain.sdf(p[rest]) <= 0
+        return out
+
+    return inside
+
+
+def _sdf_chunked(domain: Domain, p: FloatArray) -> FloatArray:
+    """``domain.sdf`` in chunks of ``CHUNK`` points (bounds the memory of its temporaries)."""
+    out = np.empty(len(p))
+    for k in range(0, len(p), CHUNK):
+        out[k : k + CHUNK] = domain.sdf(p[k : k + CHUNK])
+    return out
 
 
 def densify(loop: FloatArray, step: float) -> FloatArray:
@@ -182,22 +265,33 @@ def densify(loop: FloatArray, step: float) -> FloatArray:
 
 def probe_min(h: SizeFunction, domain: Domain) -> float:
     """The smallest size at a coarse sample of the domain: nodes inside and boundary points."""
+    return probe_range(h, domain)[0]
+
+
+def probe_range(h: SizeFunction, domain: Domain) -> tuple[float, float]:
+    """The smallest and largest size at a coarse sample of the domain (see :func:`probe_min`),
+    both clamped to the domain's diameter."""
     x0, y0, x1, y1 = domain.bbox
     step = max(x1 - x0, y1 - y0) / PROBE_CELLS
-    pts = []
+    inner, rim = np.empty((0, 2)), np.empty((0, 2))
     try:
         coarse = make_background(domain, step)
-        pts.append(coarse.nodes(coarse.inside))
+        inner = coarse.nodes(coarse.inside)
     except SizeError:  # thinner than the probe grid: its boundary points still tell h_min
         pass
     try:
-        pts += [densify(loop, step) for loop in domain.boundary_loops(step)]
+        loops = [densify(loop, step) for loop in domain.boundary_loops(step)]
+        rim = np.concatenate(loops) if loops else rim
     except ValueError:  # a domain whose boundary cannot be traced at this scale: nodes suffice
         pass
-    if not pts:
+    if not len(inner) and not len(rim):
         raise GeometryError("the domain is empty: no node of the probe grid inside, no boundary curve")
-    p = np.concatenate(pts)
-    return float(h.restricted(domain)(p).min())
+    # The grid's inside nodes are inside (d <= 0): h is asked there directly; the boundary
+    # points (chords of curves may lie just outside) go through the restriction.
+    vals = np.concatenate([h(inner) if len(inner) else np.empty(0),
+                           h.restricted(domain)(rim) if len(rim) else np.empty(0)])
+    diameter = float(domain.diameter)
+    return min(float(vals.min()), diameter), min(float(vals.max()), diameter)
 
 
 def sample_size(h: SizeFunction, domain: Domain, grid: Background, rate: float = 0.0) -> FloatArray:
@@ -233,17 +327,19 @@ def sampled_grid(
     max_cells: int,
     rate: float = 0.0,
     max_spacing: float = np.inf,
+    h_min: float | None = None,
 ) -> tuple[Background, FloatArray]:
     """The background grid for ``h`` on ``domain`` and h sampled on it (see the module docstring).
 
     Without ``spacing`` the grid follows ``min(h_min / CELLS_PER_H, max_spacing)`` with ``h_min``
     estimated on a coarse probe; when the grid then finds sizes below half that estimate, it is
-    refined once.
+    refined once.  ``h_min`` is the probe's estimate when the caller already has it.
     """
     if spacing is not None:
         grid = resolving_background(domain, float(spacing), max_cells, explicit=True)
         return grid, sample_size(h, domain, grid, rate)
-    h_min = probe_min(h, domain)
+    if h_min is None:
+        h_min = probe_min(h, domain)
     grid = resolving_background(domain, min(h_min / CELLS_PER_H, max_spacing), max_cells, explicit=False)
     values = sample_size(h, domain, grid, rate)
     finer = float(values.min())

@@ -29,6 +29,10 @@ Thinner features are missed.  An isolated medial-axis
 point (the centre of a square, where four walls are equidistant) may be seen or not depending on
 how the grid falls; missing one only raises the feature size, and only where the region is thick.
 
+:func:`effective_size` first asks :func:`thick_everywhere` (the exact boundary alone, no
+grid) whether any two walls face each other within a few h; where none do, the grid below is
+not needed.
+
 Cost: one signed-distance call on the grid, exact nearest boundary points (a k-d tree over the
 boundary polylines) for the nodes next to the boundary and for the medial-axis candidates, two
 Euclidean distance transforms (scipy.ndimage); the other nodes take the nearest point of their
@@ -46,12 +50,15 @@ from numpy.typing import ArrayLike, NDArray
 from ..geometry import Circle, Domain, GeometryError, Polygon, as_domain
 from ._core import SizeError, SizeFunction, SizeLike, as_size_function
 from .background import (
+    CELLS_PER_H,
     DEFAULT_MAX_CELLS,
     Background,
     check_grid_options,
     densify,
+    exact_boundary,
     fit_spacing,
     make_background,
+    probe_range,
     resolving_background,
     sample_size,
     sampled_grid,
@@ -76,6 +83,19 @@ GAP_DETOUR = 20.0
 #: Neighbouring nodes whose approximate nearest boundary points are more than this many grid
 #: spacings apart straddle the medial axis, perhaps: their nearest points are computed exactly.
 CANDIDATE_JUMP = 2.0
+#: :func:`thick_everywhere` is asked for walls closer than ``THICK_MARGIN * layers * h +
+#: THICK_PAD`` background grid spacings: the grid's feature size errs by about a spacing, and a
+#: domain near the limit takes the full computation.
+THICK_MARGIN = 1.0
+THICK_PAD = 2.0
+#: Walls face each other when the direction between them is within this many degrees more
+#: than ``corner_angle`` of both inward normals (slack for curved walls sampled by chords).
+FACING_SLACK = 10.0
+#: The sizes a coarse probe finds are trusted up to this factor (checked on the grid after).
+PROBE_SLACK = 1.5
+#: Boundary vertices per tested width, and the most vertices the test may use.
+THICK_STEPS = 4
+THICK_MAX_VERTICES = 1_000_000
 
 
 def _positive(name: str, value: float | None) -> float | None:
@@ -194,6 +214,101 @@ def thinnest_gap(domain: Domain, grid: Background, corner_angle: float) -> float
         return np.inf
     across = domain.sdf(0.5 * (seg_a[u] + seg_a[v])) < 0
     return float(dist[across].min()) if across.any() else np.inf
+
+
+def _dot(u: FloatArray, w: FloatArray) -> FloatArray:
+    """Row-wise dot products of two ``(k, 2)`` arrays."""
+    out: FloatArray = np.einsum("kj,kj->k", u, w)
+    return out
+
+
+def thick_everywhere(domain: Domain, width: float, corner_angle: float,
+                     needed: Callable[[FloatArray], FloatArray] | None = None,
+                     back_to_back: float = 0.0) -> bool:
+    """True when no two walls of the domain face each other closer than ``width``.
+
+    Then the medial axis between roughly opposite walls (the one :func:`feature_grid` marks) is
+    nowhere nearer than ``width / 2`` to the boundary, so the feature size is at least about
+    ``width`` everywhere.  Measured on the exact boundary, without a grid: the loops are sampled
+    every ``width / THICK_STEPS``; for every vertex v and every segment s with an end point
+    within ``width`` of it, the foot f of v on s is found, and v and s *face each other* when
+    the direction from v to f is within ``corner_angle + FACING_SLACK`` degrees of v's inward
+    normal and of the reverse of s's (parallel walls across a channel, the two sides of a sharp
+    wedge; not the neighbouring points of one wall, not walls across a notch outside).
+
+    With ``needed``, a function of points giving the width wanted there (at most ``width``),
+    two facing walls count only when they are closer than the largest ``needed`` at five points
+    evenly spaced from v to f: every point whose feature size comes from these walls lies near
+    such a chord.
+
+    Walls back to back closer than ``back_to_back`` count too (the two sides of a thin hole or
+    slit, of a narrow notch): grid nodes on either side of such a gap see opposite walls, and
+    :func:`feature_grid` marks them.
+
+    False when the domain has no exact boundary (a plain signed distance) or the test would
+    need more than ``THICK_MAX_VERTICES`` vertices: the caller then computes the feature size.
+    """
+    from scipy.spatial import cKDTree
+
+    brep = exact_boundary(domain)
+    if brep is None or not (width > 0 and math.isfinite(width)):
+        return False
+    step = width / THICK_STEPS
+    loops = [np.asarray(loop, dtype=np.float64) for loop in brep.boundary_loops(step)]
+    loops = [loop for loop in loops if len(loop) >= 2]
+    if not loops:
+        return False
+    perimeter = sum(float(np.hypot(*(np.roll(lp, -1, axis=0) - lp).T).sum()) for lp in loops)
+    if perimeter / step + sum(len(lp) for lp in loops) > THICK_MAX_VERTICES:
+        return False
+    dense = [densify(loop, step) for loop in loops]
+    sizes = np.array([len(d) for d in dense])
+    v = np.concatenate(dense)
+    start = np.repeat(np.cumsum(sizes) - sizes, sizes)
+    local = np.arange(len(v)) - start
+    nxt = start + (local + 1) % np.repeat(sizes, sizes)
+    prv = start + (local - 1) % np.repeat(sizes, sizes)
+    # Segment k runs from vertex k to nxt[k]; its inward normal is the left one (domain on the
+    # left); a vertex's normal is that of the chord from its predecessor to its successor.
+    seg = v[nxt] - v
+    seg_len = np.hypot(*seg.T)
+    seg_n = np.stack([-seg[:, 1], seg[:, 0]], axis=1) / np.maximum(seg_len, np.finfo(float).tiny)[:, None]
+    chord = v[nxt] - v[prv]
+    v_n = np.stack([-chord[:, 1], chord[:, 0]], axis=1)
+    v_n /= np.maximum(np.hypot(*v_n.T), np.finfo(float).tiny)[:, None]
+    pairs = cKDTree(v).query_pairs(max(width, back_to_back) + step, output_type="ndarray")
+    if not len(pairs):
+        return True
+    # Both directions, and both segments at the partner vertex.
+    a = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    b = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    a = np.concatenate([a, a])
+    s = np.concatenate([b, prv[b]])
+    own = (s == a) | (s == prv[a])
+    a, s = a[~own], s[~own]
+    ab = seg[s]
+    t = np.clip(np.einsum("kj,kj->k", v[a] - v[s], ab) / np.maximum(seg_len[s] ** 2, np.finfo(float).tiny),
+                0.0, 1.0)
+    foot = v[s] + t[:, None] * ab
+    gap = foot - v[a]
+    dist = np.hypot(*gap.T)
+    cos = math.cos(math.radians(min(corner_angle + FACING_SLACK, 89.0)))
+    if back_to_back > 0:
+        near = (dist > 0) & (dist < back_to_back)
+        e = gap[near] / dist[near][:, None]
+        behind = (_dot(e, v_n[a[near]]) < -cos) & (_dot(e, seg_n[s[near]]) > cos)
+        if behind.any():
+            return False
+    close = (dist > 0) & (dist < width)
+    e = gap[close] / dist[close][:, None]
+    facing = (_dot(e, v_n[a[close]]) > cos) & (-_dot(e, seg_n[s[close]]) > cos)
+    if needed is None or not facing.any():
+        return not bool(facing.any())
+    start_pt, end_pt = v[a[close][facing]], foot[close][facing]
+    frac = np.linspace(0.0, 1.0, 5)
+    along = (start_pt[None, :, :] + frac[:, None, None] * (end_pt - start_pt)[None, :, :]).reshape(-1, 2)
+    want = np.max(needed(along).reshape(len(frac), -1), axis=0)
+    return not bool(np.any(dist[close][facing] < want))
 
 
 def refine_for_gaps(domain: Domain, grid: Background, corner_angle: float, max_cells: int) -> Background:
@@ -413,7 +528,7 @@ def effective_size(
     size: SizeLike,
     domain: Domain | Callable[[FloatArray], FloatArray],
     *,
-    layers: float = 2,
+    layers: float | None = 2,
     rate: float | None = 0.2,
     min_size: float | None = None,
     corner_angle: float = 30.0,
@@ -429,8 +544,9 @@ def effective_size(
         The user's h; evaluated only inside the domain and on its boundary.
     domain : Domain or callable
         The domain (a plain signed distance needs ``bbox``).
-    layers : float
+    layers : float or None
         Elements across the thinnest parts: the size is at most ``feature_size / layers``.
+        None leaves the feature size out (gradation only).
     rate : float or None
         Gradation limit |grad h| <= rate (:func:`limit_gradation`); None to skip it.
     min_size : float, optional
@@ -448,7 +564,10 @@ def effective_size(
     SizeFunction
         When neither the feature size nor the gradation limit changes h at any grid node, h
         itself restricted to the domain (:meth:`SizeFunction.restricted`), so a size that needs
-        no correction is followed exactly.  Otherwise the corrected sizes on the background grid
+        no correction is followed exactly.  (A domain with an exact boundary on which no two
+        walls face each other within about ``layers * h``, :func:`thick_everywhere`, skips the
+        feature-size grid; with a uniform size it needs no grid at all.)  Otherwise the
+        corrected sizes on the background grid
         (a :class:`GriddedSize`); if the grid had to be coarser than h_min / 4 (``max_cells``),
         the minimum of that and the restricted h, so no detail of h is lost.
 
@@ -462,7 +581,6 @@ def effective_size(
     True
     """
     n_layers = _positive("layers", layers)
-    assert n_layers is not None
     g = None if rate is None else check_rate(rate)
     floor = _positive("min_size", min_size)
     angle = _positive("corner_angle", corner_angle)
@@ -470,15 +588,42 @@ def effective_size(
     check_grid_options(spacing, max_cells)
     dom = as_domain(domain, bbox=bbox)
     h = as_size_function(size)
-    grid, h0 = sampled_grid(
-        h, dom, spacing, int(max_cells), 0.0 if g is None else g, dom.diameter / FEATURE_CELLS
-    )
-    if spacing is None:
-        finer = refine_for_gaps(dom, grid, angle, int(max_cells))
-        if finer is not grid:
-            grid, h0 = finer, sample_size(h, dom, finer, 0.0 if g is None else g)
-    fs = feature_grid(dom, grid, 2.0 * grid.spacing if floor is None else floor, angle)
-    target = np.minimum(h0, fs / n_layers)
+    if n_layers is None and g is None:
+        return h.restricted(dom)
+    if h.constant is not None and (n_layers is None or _thick_uniform(dom, h.constant, n_layers, angle)):
+        # A uniform size has no gradient to limit, and where no two walls are closer than a
+        # few h the feature size is above it everywhere: h itself, with no grid at all.
+        return h.restricted(dom)
+    rate_ = 0.0 if g is None else g
+    grid: Background | None = None
+    thick = False
+    if spacing is None and n_layers is not None and exact_boundary(dom) is not None:
+        # Thick everywhere by the probe's sizes (the bound checked on the grid below): then
+        # the grid only has to resolve h (h_min / 4), not thin parts (diameter / 256).
+        lo, hi = probe_range(h, dom)
+        bound = PROBE_SLACK * hi
+        # The margin is that of the grid the feature size would be computed on.
+        fine = min(lo / CELLS_PER_H, dom.diameter / FEATURE_CELLS)
+        if _thick(dom, bound, n_layers, angle, fine, h.restricted(dom)):
+            grid, h0 = sampled_grid(h, dom, None, int(max_cells), rate_, h_min=lo)
+            # A grid refined below the probe's h_min / 4 (smaller sizes, a thin domain) is
+            # a case for the full computation.
+            thick = float(h0[grid.inside].max()) <= bound and grid.spacing >= lo / CELLS_PER_H
+            grid = grid if thick else None
+    if grid is None:
+        grid, h0 = sampled_grid(h, dom, spacing, int(max_cells), rate_, dom.diameter / FEATURE_CELLS)
+    inside = grid.inside
+    h_max = float(h0[inside].max()) if inside.any() else np.inf
+    if thick or n_layers is None or _thick(dom, h_max, n_layers, angle, grid.spacing, h.restricted(dom)):
+        # No wall faces another within a few of the largest h: the feature size changes nothing.
+        target = h0
+    else:
+        if spacing is None:
+            finer = refine_for_gaps(dom, grid, angle, int(max_cells))
+            if finer is not grid:
+                grid, h0 = finer, sample_size(h, dom, finer, rate_)
+        fs = feature_grid(dom, grid, 2.0 * grid.spacing if floor is None else floor, angle)
+        target = np.minimum(h0, fs / n_layers)
     out = target if g is None else limit_grid(target, grid, g)
     # Changes outside (band nodes lowered to the limited extension) do not count, nor rounding:
     # a cone of slope exactly ``rate`` comes back lower by an ulp here and there.
@@ -489,3 +634,24 @@ def effective_size(
     if grid.capped:
         return SizeFunction(_Lower(field, h.restricted(dom)))
     return SizeFunction(field)
+
+
+def _thick(domain: Domain, h_max: float, layers: float, corner_angle: float, spacing: float,
+           h: Callable[[FloatArray], FloatArray] | None = None) -> bool:
+    """Whether the feature size is above ``layers * h`` everywhere (:func:`thick_everywhere`),
+    h bounded by ``h_max``, with a margin for a background grid of ``spacing``; a variable h is
+    evaluated where two walls face each other."""
+    factor, pad = THICK_MARGIN * layers, THICK_PAD * spacing
+    if h is None:
+        return thick_everywhere(domain, factor * h_max + pad, corner_angle, back_to_back=pad)
+
+    def needed(p: FloatArray) -> FloatArray:
+        return np.asarray(factor * np.minimum(h(p), h_max) + pad, dtype=np.float64)
+
+    return thick_everywhere(domain, factor * h_max + pad, corner_angle, needed, back_to_back=pad)
+
+
+def _thick_uniform(domain: Domain, size: float, layers: float, corner_angle: float) -> bool:
+    """:func:`_thick` for a uniform size, with the spacing the background grid would have."""
+    h = min(size, domain.diameter)
+    return _thick(domain, h, layers, corner_angle, min(h / CELLS_PER_H, domain.diameter / FEATURE_CELLS))

@@ -1,0 +1,370 @@
+"""Kernels over a triangle mesh given as plain arrays: edges, neighbours, measures, inside/outside.
+
+These are the compiled bodies of :mod:`injmesh.quality` and :mod:`injmesh.triangulation`; call
+those modules' functions, which validate and normalise their inputs (points ``(n, 2)`` float64
+C-contiguous, triangles ``(m, 3)`` int64), so each kernel is compiled for one signature only.
+
+Edges are found without a global sort: each half-edge is filed under its smaller vertex
+(counting sort into compressed rows, as a CSR matrix stores its columns) and the few entries of
+a row -- a vertex's degree -- are sorted by insertion.  The output is in the order a sort of
+``(i, j)`` pairs gives, so it is the same as the ``np.unique`` formulation it replaces, and
+linear in the mesh size.
+
+Examples
+--------
+>>> import numpy as np
+>>> from injmesh.kernels.mesh import unique_edges
+>>> unique_edges(np.array([[0, 1, 2], [0, 2, 3]]), 4).tolist()
+[[0, 1], [0, 2], [0, 3], [1, 2], [2, 3]]
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# ---------------------------------------------------------------------------------------------
+# Edges and neighbours
+
+
+@njit(cache=True, inline="always")
+def _file(start, fill, other, hid, u, v, h, count):  # type: ignore[no-untyped-def]
+    lo = min(u, v)
+    if count:
+        start[lo + 1] += 1
+    else:
+        s = fill[lo]
+        other[s] = max(u, v)
+        hid[s] = h
+        fill[lo] = s + 1
+
+
+@njit(cache=True)
+def _rows_by_low_vertex(tri, n):  # type: ignore[no-untyped-def]
+    """Half-edges filed by their smaller vertex: (start (n+1,), other end, half-edge id).
+
+    Half-edge ``3 t + k`` is the edge opposite corner k of t: ``tri[t, k+1] -> tri[t, k+2]``.
+    Within a row the ids are increasing (counting sort is stable).  The corners are written
+    out rather than looped over with ``% 3``: this loop is memory-bound and runs ~10x faster so.
+    """
+    m = tri.shape[0]
+    start = np.zeros(n + 1, dtype=np.int64)
+    other = np.empty(3 * m, dtype=np.int64)
+    hid = np.empty(3 * m, dtype=np.int64)
+    fill = start
+    for t in range(m):
+        a = tri[t, 0]
+        b = tri[t, 1]
+        c = tri[t, 2]
+        _file(start, fill, other, hid, b, c, 3 * t, True)
+        _file(start, fill, other, hid, c, a, 3 * t + 1, True)
+        _file(start, fill, other, hid, a, b, 3 * t + 2, True)
+    for v in range(n):
+        start[v + 1] += start[v]
+    fill = start[:n].copy()
+    for t in range(m):
+        a = tri[t, 0]
+        b = tri[t, 1]
+        c = tri[t, 2]
+        _file(start, fill, other, hid, b, c, 3 * t, False)
+        _file(start, fill, other, hid, c, a, 3 * t + 1, False)
+        _file(start, fill, other, hid, a, b, 3 * t + 2, False)
+    return start, other, hid
+
+
+@njit(cache=True)
+def edge_index(tri, n):  # type: ignore[no-untyped-def]
+    """Distinct edges ``(k, 2)`` (i < j, sorted) and the edge of each half-edge ``(3 m,)``.
+
+    ``edge_of[3 t + k]`` is the row of ``edges`` holding the side opposite corner k of t.
+    """
+    start, other, hid = _rows_by_low_vertex(tri, n)
+    # Insertion sort of each row by (other end, half-edge id): rows are a vertex's degree long.
+    for v in range(n):
+        for s in range(start[v] + 1, start[v + 1]):
+            o = other[s]
+            h = hid[s]
+            r = s - 1
+            while r >= start[v] and (other[r] > o or (other[r] == o and hid[r] > h)):
+                other[r + 1] = other[r]
+                hid[r + 1] = hid[r]
+                r -= 1
+            other[r + 1] = o
+            hid[r + 1] = h
+    count = 0
+    for v in range(n):
+        for s in range(start[v], start[v + 1]):
+            if s == start[v] or other[s] != other[s - 1]:
+                count += 1
+    edges = np.empty((count, 2), dtype=np.int64)
+    edge_of = np.empty(other.shape[0], dtype=np.int64)
+    e = -1
+    for v in range(n):
+        for s in range(start[v], start[v + 1]):
+            if s == start[v] or other[s] != other[s - 1]:
+                e += 1
+                edges[e, 0] = v
+                edges[e, 1] = other[s]
+            edge_of[hid[s]] = e
+    return edges, edge_of
+
+
+@njit(cache=True)
+def unique_edges(tri, n):  # type: ignore[no-untyped-def]
+    """Distinct edges ``(k, 2)`` with i < j, sorted by (i, j)."""
+    return edge_index(tri, n)[0]
+
+
+@njit(cache=True)
+def neighbours(tri, n):  # type: ignore[no-untyped-def]
+    """Triangle across the edge opposite each corner, ``(m, 3)``, -1 where there is none.
+
+    The twin of half-edge u -> v is a half-edge v -> u.  Both are filed under the smaller of
+    u and v, so twins meet in one short row (memory is touched once per half-edge at random,
+    then row by row).  In an invalid mesh with several copies of a directed edge, each twin is
+    paired once, in triangle order; the copies left over keep -1.
+    """
+    m = tri.shape[0]
+    start, other, hid = _rows_by_low_vertex(tri, n)
+    nbr = np.full((m, 3), -1, dtype=np.int64)
+    for v in range(n):
+        for s in range(start[v], start[v + 1]):
+            h = hid[s]
+            th = h // 3
+            kh = h - 3 * th
+            if nbr[th, kh] >= 0:
+                continue
+            forward = tri[th, (kh + 1) % 3] == v  # h runs v -> other
+            for r in range(s + 1, start[v + 1]):
+                if other[r] != other[s]:
+                    continue
+                g = hid[r]
+                tg = g // 3
+                kg = g - 3 * tg
+                if nbr[tg, kg] >= 0 or (tri[tg, (kg + 1) % 3] == v) == forward:
+                    continue
+                nbr[th, kh] = tg
+                nbr[tg, kg] = th
+                break
+    return nbr
+
+
+@njit(cache=True)
+def boundary_edges(tri, n):  # type: ignore[no-untyped-def]
+    """Edges in exactly one triangle, oriented as there; in the order sides (0,1), (1,2),
+    (2,0) of all triangles (the order of the concatenation it replaces)."""
+    m = tri.shape[0]
+    _, edge_of = edge_index(tri, n)
+    count = np.zeros(edge_of.shape[0], dtype=np.int64)
+    for h in range(edge_of.shape[0]):
+        count[edge_of[h]] += 1
+    # Side (0,1) is opposite corner 2, (1,2) opposite 0, (2,0) opposite 1.
+    total = 0
+    for h in range(edge_of.shape[0]):
+        if count[edge_of[h]] == 1:
+            total += 1
+    out = np.empty((total, 2), dtype=np.int64)
+    r = 0
+    for c in (2, 0, 1):
+        for t in range(m):
+            if count[edge_of[3 * t + c]] == 1:
+                out[r, 0] = tri[t, (c + 1) % 3]
+                out[r, 1] = tri[t, (c + 2) % 3]
+                r += 1
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Measures
+
+
+@njit(cache=True)
+def signed_areas(pts, tri):  # type: ignore[no-untyped-def]
+    m = tri.shape[0]
+    out = np.empty(m, dtype=np.float64)
+    for t in range(m):
+        a = tri[t, 0]
+        b = tri[t, 1]
+        c = tri[t, 2]
+        ux = pts[b, 0] - pts[a, 0]
+        uy = pts[b, 1] - pts[a, 1]
+        vx = pts[c, 0] - pts[a, 0]
+        vy = pts[c, 1] - pts[a, 1]
+        out[t] = 0.5 * (ux * vy - uy * vx)
+    return out
+
+
+@njit(cache=True, inline="always")
+def _length(pts, i, j):  # type: ignore[no-untyped-def]
+    # sqrt of the sum of squares, not math.hypot: numba's hypot is ~40x slower, and mesh
+    # coordinates are far from overflow.
+    dx = pts[j, 0] - pts[i, 0]
+    dy = pts[j, 1] - pts[i, 1]
+    return math.sqrt(dx * dx + dy * dy)
+
+
+@njit(cache=True)
+def edge_lengths(pts, tri):  # type: ignore[no-untyped-def]
+    """Column k: length of the side opposite vertex k."""
+    m = tri.shape[0]
+    out = np.empty((m, 3), dtype=np.float64)
+    for t in range(m):
+        for k in range(3):
+            out[t, k] = _length(pts, tri[t, (k + 1) % 3], tri[t, (k + 2) % 3])
+    return out
+
+
+@njit(cache=True)
+def triangle_quality(pts, tri):  # type: ignore[no-untyped-def]
+    """Eq. (5.1), 0 where a side has length 0."""
+    m = tri.shape[0]
+    out = np.empty(m, dtype=np.float64)
+    for t in range(m):
+        p0 = tri[t, 0]
+        p1 = tri[t, 1]
+        p2 = tri[t, 2]
+        a = _length(pts, p1, p2)
+        b = _length(pts, p2, p0)
+        c = _length(pts, p0, p1)
+        den = a * b * c
+        if den == 0.0 or not math.isfinite(den):
+            out[t] = 0.0
+        else:
+            out[t] = (b + c - a) * (c + a - b) * (a + b - c) / den
+    return out
+
+
+@njit(cache=True)
+def centroids_and_flatness(pts, tri, flat):  # type: ignore[no-untyped-def]
+    """Centroids ``(m, 2)``, longest side squared ``(m,)`` and whether each triangle is flat:
+    ``|area| <= flat * longest^2``."""
+    m = tri.shape[0]
+    cen = np.empty((m, 2), dtype=np.float64)
+    longest2 = np.empty(m, dtype=np.float64)
+    is_flat = np.empty(m, dtype=np.bool_)
+    for t in range(m):
+        a = tri[t, 0]
+        b = tri[t, 1]
+        c = tri[t, 2]
+        cen[t, 0] = (pts[a, 0] + pts[b, 0] + pts[c, 0]) / 3.0
+        cen[t, 1] = (pts[a, 1] + pts[b, 1] + pts[c, 1]) / 3.0
+        best = 0.0
+        for k in range(3):
+            i = tri[t, k]
+            j = tri[t, (k + 1) % 3]
+            dx = pts[i, 0] - pts[j, 0]
+            dy = pts[i, 1] - pts[j, 1]
+            best = max(best, dx * dx + dy * dy)
+        longest2[t] = best
+        ux = pts[b, 0] - pts[a, 0]
+        uy = pts[b, 1] - pts[a, 1]
+        vx = pts[c, 0] - pts[a, 0]
+        vy = pts[c, 1] - pts[a, 1]
+        is_flat[t] = abs(0.5 * (ux * vy - uy * vx)) <= flat * best
+    return cen, longest2, is_flat
+
+
+# ---------------------------------------------------------------------------------------------
+# Inside / outside
+
+
+@njit(cache=True)
+def classify_by_walls(tri, nbr, walls, n):  # type: ignore[no-untyped-def]
+    """Flood fill of triangles across non-wall edges; see ``triangulation.classify_by_walls``.
+
+    Returns (inside, open) boolean arrays.
+    """
+    m = tri.shape[0]
+    w = walls.shape[0]
+    # Walls filed under their smaller vertex.
+    start = np.zeros(n + 1, dtype=np.int64)
+    for i in range(w):
+        start[min(walls[i, 0], walls[i, 1]) + 1] += 1
+    for v in range(n):
+        start[v + 1] += start[v]
+    fill = start[:n].copy()
+    wid = np.empty(w, dtype=np.int64)
+    for i in range(w):
+        lo = min(walls[i, 0], walls[i, 1])
+        wid[fill[lo]] = i
+        fill[lo] += 1
+    # Per half-edge: is it a wall, and is the triangle on a wall's left (+1) or right (-1)?
+    is_wall = np.zeros((m, 3), dtype=np.bool_)
+    left = np.zeros(m, dtype=np.bool_)
+    right = np.zeros(m, dtype=np.bool_)
+    for t in range(m):
+        for k in range(3):
+            u = tri[t, (k + 1) % 3]
+            v = tri[t, (k + 2) % 3]
+            lo = min(u, v)
+            for s in range(start[lo], start[lo + 1]):
+                i = wid[s]
+                a = walls[i, 0]
+                b = walls[i, 1]
+                if a == u and b == v:
+                    is_wall[t, k] = True
+                    left[t] = True
+                elif a == v and b == u:
+                    is_wall[t, k] = True
+                    right[t] = True
+    # Connected regions across non-wall edges, labelled in order of their lowest triangle.
+    label = np.full(m, -1, dtype=np.int64)
+    stack = np.empty(m, dtype=np.int64)
+    n_lab = 0
+    for seed in range(m):
+        if label[seed] >= 0:
+            continue
+        label[seed] = n_lab
+        sp = 1
+        stack[0] = seed
+        while sp > 0:
+            sp -= 1
+            t = stack[sp]
+            for k in range(3):
+                u = nbr[t, k]
+                if u >= 0 and not is_wall[t, k] and label[u] < 0:
+                    label[u] = n_lab
+                    stack[sp] = u
+                    sp += 1
+        n_lab += 1
+    seen_in = np.zeros(n_lab, dtype=np.bool_)
+    seen_out = np.zeros(n_lab, dtype=np.bool_)
+    for t in range(m):
+        if left[t]:
+            seen_in[label[t]] = True
+        if right[t]:
+            seen_out[label[t]] = True
+    any_in = False
+    for r in range(n_lab):
+        any_in = any_in or seen_in[r]
+    inside = np.empty(m, dtype=np.bool_)
+    open_ = np.empty(m, dtype=np.bool_)
+    for t in range(m):
+        r = label[t]
+        inside[t] = seen_in[r] and not seen_out[r]
+        op = seen_in[r] == seen_out[r]
+        # A region touching no wall lies beyond the walls (outside), unless no region touches
+        # a wall from inside at all.
+        if any_in and not seen_in[r] and not seen_out[r]:
+            op = False
+        open_[t] = op
+    return inside, open_
+
+
+@njit(cache=True)
+def inside_polygon(q, a, b):  # type: ignore[no-untyped-def]
+    """Even-odd test of points q against the segments a[i] -> b[i]."""
+    out = np.empty(q.shape[0], dtype=np.bool_)
+    for s in range(q.shape[0]):
+        x = q[s, 0]
+        y = q[s, 1]
+        odd = False
+        for i in range(a.shape[0]):
+            if (a[i, 1] > y) != (b[i, 1] > y):
+                xint = a[i, 0] + (y - a[i, 1]) * (b[i, 0] - a[i, 0]) / (b[i, 1] - a[i, 1])
+                if x < xint:
+                    odd = not odd
+        out[s] = odd
+    return out

@@ -1,0 +1,78 @@
+"""Inside/outside of a grid's nodes from boundary polylines, by scanlines (background grids).
+
+A background grid of a domain with an exact boundary needs the signed distance only near the
+boundary: farther away the sign is all that is read.  :func:`scan` gives the sign of every node
+by the even-odd rule along each grid row (one pass over the segments, then a sort of each row's
+crossings) and marks the nodes within a given distance of a segment's bounding box, which the
+caller evaluates exactly.  Linear in nodes plus segments; deterministic.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def scan(x: np.ndarray, y: np.ndarray, a: np.ndarray, b: np.ndarray,
+         reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes inside the closed polylines ``a[s] -> b[s]`` and nodes near a segment.
+
+    ``x`` (nx,) and ``y`` (ny,) are uniform, increasing axes.  A node is *near* when it lies
+    within ``reach`` of a segment's bounding box.  A row crosses a segment when
+    ``min(ya, yb) <= y < max(ya, yb)``, so a vertex on a row is counted once.
+
+    Returns
+    -------
+    inside : (ny, nx) bool
+        Even-odd rule (meaningful away from the segments; near ones are to be evaluated).
+    near : (ny, nx) bool
+    """
+    nx, ny, m = x.shape[0], y.shape[0], a.shape[0]
+    sx = (x[nx - 1] - x[0]) / max(nx - 1, 1)
+    sy = (y[ny - 1] - y[0]) / max(ny - 1, 1)
+    near = np.zeros((ny, nx), dtype=np.bool_)
+    count = np.zeros(ny + 1, dtype=np.int64)
+    for pass_ in range(2):
+        if pass_ == 1:
+            for j in range(ny):
+                count[j + 1] += count[j]
+            xs = np.empty(count[ny])
+            fill = count[:-1].copy()
+        for s in range(m):
+            ya, yb = a[s, 1], b[s, 1]
+            lo_y, hi_y = min(ya, yb), max(ya, yb)
+            # One row of slack each way: the test below decides exactly.
+            j0 = max(int(math.ceil((lo_y - y[0]) / sy)) - 1, 0)
+            j1 = min(int(math.floor((hi_y - y[0]) / sy)) + 1, ny - 1)
+            for j in range(j0, j1 + 1):
+                yj = y[j]
+                if yj < lo_y or yj >= hi_y:
+                    continue
+                if pass_ == 0:
+                    count[j + 1] += 1
+                else:
+                    t = (yj - ya) / (yb - ya)
+                    xs[fill[j]] = a[s, 0] + t * (b[s, 0] - a[s, 0])
+                    fill[j] += 1
+            if pass_ == 0:
+                lo_x, hi_x = min(a[s, 0], b[s, 0]), max(a[s, 0], b[s, 0])
+                i0 = max(int(math.floor((lo_x - reach - x[0]) / sx)), 0)
+                i1 = min(int(math.ceil((hi_x + reach - x[0]) / sx)), nx - 1)
+                k0 = max(int(math.floor((lo_y - reach - y[0]) / sy)), 0)
+                k1 = min(int(math.ceil((hi_y + reach - y[0]) / sy)), ny - 1)
+                for k in range(k0, k1 + 1):
+                    for i in range(i0, i1 + 1):
+                        near[k, i] = True
+    inside = np.zeros((ny, nx), dtype=np.bool_)
+    for j in range(ny):
+        row = np.sort(xs[count[j]:count[j + 1]])
+        for c in range(0, row.shape[0] - 1, 2):
+            i0 = max(int(math.ceil((row[c] - x[0]) / sx)) - 1, 0)
+            i1 = min(int(math.floor((row[c + 1] - x[0]) / sx)) + 1, nx - 1)
+            for i in range(i0, i1 + 1):
+                if row[c] <= x[i] <= row[c + 1]:
+                    inside[j, i] = True
+    return inside, near

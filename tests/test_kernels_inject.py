@@ -1,0 +1,166 @@
+"""The background grid of Advancing Node Injection (kernels/inject.py) against brute force."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from injmesh import Circle, Rectangle
+from injmesh.boundary import mesh_boundary
+from injmesh.injection import CLEARANCE, MERGE, inject_nodes
+from injmesh.kernels import inject as kern
+from injmesh.sizing import as_size_function
+
+
+def _grid(pts: np.ndarray, cell: float, box: tuple[float, float, float, float]):
+    x0, y0, x1, y1 = box
+    nx, ny = int((x1 - x0) / cell) + 1, int((y1 - y0) / cell) + 1
+    head = np.full(nx * ny, -1, dtype=np.int64)
+    link = np.empty(max(len(pts), 1), dtype=np.int64)
+    kern.insert(pts, 0, len(pts), head, link, x0, y0, 1.0 / cell, nx, ny)
+    return head, link, x0, y0, nx, ny
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(0, 300),
+    cell=st.sampled_from([0.01, 0.05, 0.13, 0.5, 2.0]),
+    reach=st.sampled_from([0.0, 0.02, 0.1, 0.4, np.inf]),
+)
+def test_nearest_matches_brute_force(seed: int, n: int, cell: float, reach: float) -> None:
+    rng = np.random.default_rng(seed)
+    pts = rng.random((n, 2))
+    if n > 10:
+        pts[5] = pts[3]  # a duplicate
+    head, link, x0, y0, nx, ny = _grid(pts, cell, (0.0, 0.0, 1.0, 1.0))
+    # Queries inside the box and some outside it (clamped to the border cells).
+    q = rng.random((40, 2)) * 1.4 - 0.2
+    stop = n if n < 5 else int(rng.integers(1, n + 1))
+    for qx, qy in q:
+        d, who = kern.nearest(qx, qy, reach, pts, stop, head, link, x0, y0, cell, nx, ny)
+        dist = np.hypot(pts[:stop, 0] - qx, pts[:stop, 1] - qy)
+        if stop == 0 or dist.min() >= reach:
+            assert who == -1 and d == np.inf
+        else:
+            assert 0 <= who < stop
+            assert d == pytest.approx(dist.min(), rel=1e-12, abs=1e-15)
+            assert dist[who] == pytest.approx(dist.min(), rel=1e-12, abs=1e-15)
+
+
+def _reference_admit(q, hq, keep, pts, hs, seg_a, seg_b):
+    """The three rules of injection's step 3, by brute force."""
+    keep = keep.copy()
+    for t in np.flatnonzero(keep):
+        ab = seg_b - seg_a
+        u = np.clip(np.einsum("ij,ij->i", q[t] - seg_a, ab) / np.einsum("ij,ij->i", ab, ab), 0, 1)
+        wall = np.hypot(*(q[t] - seg_a - u[:, None] * ab).T).min()
+        if wall < CLEARANCE * hq[t]:
+            keep[t] = False
+            continue
+        if len(pts):
+            d = np.hypot(*(pts - q[t]).T)
+            k = int(np.argmin(d))
+            if d[k] < MERGE * 0.5 * (hq[t] + hs[k]):
+                keep[t] = False
+    kept: list[int] = []
+    for t in np.flatnonzero(keep):
+        if any(np.hypot(*(q[t] - q[s])) < MERGE * 0.5 * (hq[t] + hq[s]) for s in kept):
+            keep[t] = False
+        else:
+            kept.append(t)
+    return keep
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_admit_matches_brute_force(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    # Walls: a square's sides cut into segments; old nodes and candidates scattered inside.
+    corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+    t = np.linspace(0, 1, 11)[:-1, None]
+    ring = np.concatenate([c + t * (np.roll(corners, -1, axis=0)[i] - c) for i, c in enumerate(corners)])
+    seg_a, seg_b = ring, np.roll(ring, -1, axis=0)
+    old = rng.random((int(rng.integers(0, 200)), 2))
+    h_old = rng.uniform(0.02, 0.08, len(old))
+    q = rng.random((300, 2))
+    hq = rng.uniform(0.02, 0.08, len(q))
+    keep = rng.random(len(q)) < 0.9
+    expected = _reference_admit(q, hq, keep, old, h_old, seg_a, seg_b)
+
+    cell = float(rng.choice([0.01, 0.04, 0.3]))
+    cap = len(old) + len(q)
+    pts, hs = np.empty((cap, 2)), np.empty(cap)
+    pts[: len(old)], hs[: len(old)] = old, h_old
+    head, link, x0, y0, nx, ny = _grid(pts[: len(old)], cell, (0.0, 0.0, 1.0, 1.0))
+    link = np.concatenate([link[: len(old)], np.empty(len(q), dtype=np.int64)])
+    rows, items = kern.segment_lists(seg_a, seg_b, x0, y0, cell, nx, ny)
+    got = keep.copy()
+    h_max = float(h_old.max()) if len(old) else 0.0
+    n = kern.admit(q, hq, got, MERGE, CLEARANCE, pts, hs, len(old), h_max, head, link, seg_a, seg_b,
+                   rows, items, x0, y0, cell, nx, ny)
+    assert np.array_equal(got, expected)
+    assert n == len(old) + int(expected.sum())
+    # The survivors were appended in candidate order, with their h, and are now found.
+    assert np.array_equal(pts[len(old): n], q[expected])
+    assert np.array_equal(hs[len(old): n], hq[expected])
+    for k in range(len(old), n):
+        d, who = kern.nearest(pts[k, 0], pts[k, 1], np.inf, pts, n, head, link, x0, y0, cell, nx, ny)
+        assert d == 0.0
+
+
+@pytest.mark.parametrize("domain", [Rectangle((0, 0), (1, 1)), Circle((0, 0), 1) - Circle((0.3, 0), 0.3)])
+def test_injection_repeats_bit_for_bit(domain) -> None:
+    h = as_size_function(lambda p: 0.03 + 0.05 * np.abs(p[:, 0]))
+    b = mesh_boundary(domain, h, np.empty((0, 2)), max_nodes=10**6)
+    runs = [inject_nodes(domain, h, b, b.points, max_nodes=10**6) for _ in range(2)]
+    assert runs[0].tobytes() == runs[1].tobytes()
+    # No injected node violates the merge rule against the nearest other node.
+    allp = np.concatenate([b.points, runs[0]])
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(allp).query(runs[0], k=2)
+    assert np.all(d[:, 1] >= MERGE * 0.5 * h(runs[0]).min() * 0.999)
+
+
+def _reference_runs(points, lengths, closed, keep):
+    """Runs of kept points per chain, in plain Python: a closed chain that lost a point starts
+    right after its first lost point."""
+    out, pos = [], 0
+    for size, ring in zip(lengths, closed, strict=True):
+        idx = list(range(pos, pos + size))
+        pos += size
+        lost = [k for k in idx if not keep[k]]
+        if not lost:
+            if idx:
+                out.append(([points[k] for k in idx], bool(ring)))
+            continue
+        if ring:
+            cut = idx.index(lost[0]) + 1
+            idx = idx[cut:] + idx[:cut]
+        run: list = []
+        for k in idx + [None]:
+            if k is not None and keep[k]:
+                run.append(points[k])
+            elif run:
+                out.append((run, False))
+                run = []
+    return out
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), keep_rate=st.sampled_from([0.2, 0.7, 0.95, 1.0]))
+def test_survivors_match_plain_runs(seed: int, keep_rate: float) -> None:
+    rng = np.random.default_rng(seed)
+    lengths = rng.integers(0, 9, int(rng.integers(1, 6)))
+    closed = rng.random(len(lengths)) < 0.5
+    points = rng.random((int(lengths.sum()), 2))
+    keep = rng.random(len(points)) < keep_rate
+    start = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+    pts, got_len, got_closed = kern.survivors(points, start, closed, keep)
+    expected = _reference_runs(points, lengths, closed, keep)
+    assert got_len.tolist() == [len(r) for r, _ in expected]
+    assert got_closed.tolist() == [c for _, c in expected]
+    flat = np.array([p for r, _ in expected for p in r]).reshape(-1, 2)
+    assert np.array_equal(pts, flat)

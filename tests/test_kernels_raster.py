@@ -1,0 +1,58 @@
+"""Background grids of exact-boundary domains: signs by scanlines, d evaluated near the boundary."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from injmesh import Circle, Polygon, Rectangle, shapes
+from injmesh.cases import CASES
+from injmesh.sizing.background import NEAR, _sdf_on_grid
+
+
+def _domains():
+    out = [pytest.param(c.geometry, id=name) for name, c in CASES.items()]
+    for fam, seed in [("star", 0), ("holes", 1), ("neck", 2), ("airfoil", 0), ("coastline", 1), ("walk", 4)]:
+        out.append(pytest.param(shapes.FAMILIES[fam](seed).domain(), id=f"{fam}{seed}"))
+    # A vertex exactly on grid rows and columns, and a hole touching nothing.
+    out.append(pytest.param(Polygon([(0, 0), (1, 0), (1, 1), (0.5, 0.5), (0, 1)]) - Circle((0.5, 0.2), 0.1),
+                            id="on-rows"))
+    out.append(pytest.param(Rectangle((0, 0), (3, 1)) - Rectangle((1, 0.25), (2, 0.75)), id="frame"))
+    return out
+
+
+@pytest.mark.parametrize("domain", _domains())
+@pytest.mark.parametrize("cells", [64, 200])
+def test_grid_signs_and_near_values_match_the_sdf(domain, cells: int) -> None:
+    x0, y0, x1, y1 = domain.bbox
+    s = max(x1 - x0, y1 - y0) / cells
+    x = x0 + s * (np.arange(int((x1 - x0) / s) + 5) - 2)
+    y = y0 + s * (np.arange(int((y1 - y0) / s) + 5) - 2)
+    got = _sdf_on_grid(domain, x, y, s)
+    X, Y = np.meshgrid(x, y)
+    full = domain.sdf(np.stack([X.ravel(), Y.ravel()], axis=1)).reshape(got.shape)
+    assert np.array_equal(got <= 0, full <= 0)
+    near = np.abs(full) < NEAR * s * 0.99
+    assert np.array_equal(got[near], full[near])
+    # Elsewhere the magnitude is a lower bound of |d|.
+    assert np.all(np.abs(got) <= np.abs(full) + 1e-12 * s)
+
+
+@pytest.mark.parametrize("domain", _domains()[:8])
+def test_inside_test_answers_as_the_sdf(domain) -> None:
+    from injmesh.sizing.background import inside_test
+
+    x0, y0, x1, y1 = domain.bbox
+    test = inside_test(domain, max(x1 - x0, y1 - y0) / 97)
+    rng = np.random.default_rng(3)
+    w, h = x1 - x0, y1 - y0
+    p = rng.random((5000, 2)) * [1.4 * w, 1.4 * h] + [x0 - 0.2 * w, y0 - 0.2 * h]
+    # Points on the boundary itself too.
+    rim = np.concatenate(domain.exact_brep().boundary_loops(0.05)) if hasattr(domain, "exact_brep") else p[:0]
+    p = np.concatenate([p, rim])
+    expected = domain.sdf(p) <= 0
+    if isinstance(domain, Circle):
+        assert test is None  # a closed formula: the plain call is as fast
+        return
+    assert test is not None
+    assert np.array_equal(test(p), expected)
