@@ -20,7 +20,7 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .errors import ConvergenceWarning, MeshError, NodeBudgetError
+from .errors import ConvergenceWarning, CurveError, MeshError, NodeBudgetError, RegionError
 from .expression import size_expression
 from .geometry import (
     Circle,
@@ -74,6 +74,7 @@ def plot_mesh(mesh: Mesh, ax: Axes | None = None, **kwargs: Any) -> Axes:
 __all__ = [
     "Circle",
     "ConvergenceWarning",
+    "CurveError",
     "Difference",
     "Domain",
     "GeometryError",
@@ -86,6 +87,7 @@ __all__ = [
     "Polygon",
     "Progress",
     "Rectangle",
+    "RegionError",
     "SizeError",
     "Union",
     "__version__",

@@ -27,7 +27,7 @@ geometry lists them in.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,6 +37,7 @@ from scipy.spatial import cKDTree
 from . import _tolerances as tol
 from .errors import NodeBudgetError
 from .geometry import BRep, Domain, GeometryError
+from .geometry.regions import Piece
 from .geometry.tracing import grid_spacing
 from .progress import Callback, report
 from .sizing import SizeFunction
@@ -732,3 +733,160 @@ def _balance(
         if move.max() < tol.BALANCE_TOL:
             break
     return t
+
+
+@dataclass(frozen=True)
+class CurveMesh:
+    """Nodes on the interior curves (regions' boundaries and user curves), piece by piece.
+
+    Attributes
+    ----------
+    points : (nc, 2) array
+        Curve nodes; junctions (where pieces end or cross) appear once.
+    fixed : (nc,) bool array
+        Junctions, corners and end points: they never move.
+    edges : (k, 2) int array
+        Segments, each oriented along its piece.
+    edge_piece : (k,) int array
+        Piece of each segment.
+    node_piece : (nc,) int array
+        Piece of each node (for a junction: the first piece through it).
+    chains : tuple of (int array, bool)
+        Each piece's nodes in order and whether it is closed (then the last joins the first).
+    """
+
+    points: FloatArray
+    fixed: NDArray[np.bool_]
+    edges: IntArray
+    edge_piece: IntArray
+    node_piece: IntArray
+    chains: tuple[tuple[IntArray, bool], ...]
+
+
+def mesh_curves(pieces: Sequence[Piece], h: SizeFn, diameter: float) -> CurveMesh:
+    """Step 1 on interior curves: refine (Eq. 3.1, 3.2), lay ``round(S)`` segments at equal
+    h-length between fixed vertices, balance (Eq. 3.3), exactly as on the boundary loops.
+
+    Each piece projects onto its own curve.  A closed piece without a fixed vertex gets one
+    anchor (its lowest-leftmost vertex), as a smooth boundary loop does.
+
+    Parameters
+    ----------
+    pieces : sequence of :class:`~injmesh.geometry.regions.Piece`
+    h : callable
+        Validated size function.
+    diameter : float
+        The domain's diameter (scale of the tolerance that merges junctions).
+
+    Returns
+    -------
+    CurveMesh
+    """
+    eps = 10 * tol.ON_BOUNDARY * diameter
+    placed: list[tuple[FloatArray, NDArray[np.bool_], bool]] = []
+    for piece in pieces:
+        p, f = piece.points, piece.fixed.copy()
+        if piece.closed:
+            if not f.any():
+                f[np.lexsort((p[:, 1], p[:, 0]))[0]] = True
+            first = int(np.argmax(f))
+            p, f = np.roll(p, -first, axis=0), np.roll(f, -first)
+            p, f = np.concatenate([p, p[:1]]), np.r_[f, True]
+        p, f = _refine_open(piece.project, h, p, f)
+        out, fixed = _select_open(piece.project, h, p, f, piece.closed)
+        placed.append((out, fixed, piece.closed))
+    # Junctions shared by pieces become one node each.
+    junction = np.concatenate([o[f] for o, f, _ in placed]) if placed else np.empty((0, 2))
+    uniq = np.empty((0, 2))
+    jid = np.zeros(len(junction), dtype=np.intp)
+    if len(junction):
+        tree = cKDTree(junction)
+        rep = np.arange(len(junction))
+        for i, j in sorted(tree.query_pairs(eps)):
+            rep[j] = min(rep[j], rep[i])
+        # Follow chains of representatives to their root.
+        while np.any(rep[rep] != rep):
+            rep = rep[rep]
+        roots, jid = np.unique(rep, return_inverse=True)
+        uniq = junction[roots]
+    points = [uniq]
+    fixed_all = [np.ones(len(uniq), dtype=bool)]
+    node_piece = [np.full(len(uniq), -1, dtype=np.intp)]
+    edges, edge_piece, chains = [], [], []
+    n, jpos = len(uniq), 0
+    for k, (out, fixed, closed) in enumerate(placed):
+        ids = np.empty(len(out), dtype=np.intp)
+        nf = int(fixed.sum())
+        ids[fixed] = jid[jpos:jpos + nf]
+        jpos += nf
+        free = ~fixed
+        ids[free] = n + np.arange(int(free.sum()))
+        n += int(free.sum())
+        points.append(out[free])
+        fixed_all.append(np.zeros(int(free.sum()), dtype=bool))
+        node_piece.append(np.full(int(free.sum()), k, dtype=np.intp))
+        edges.append(np.stack([ids[:-1], ids[1:]], axis=1))
+        edge_piece.append(np.full(len(ids) - 1, k, dtype=np.intp))
+        chains.append((ids[:-1] if closed else ids, closed))
+    npc = np.concatenate(node_piece)
+    e = np.concatenate(edges) if edges else np.zeros((0, 2), dtype=np.intp)
+    ep = np.concatenate(edge_piece) if edge_piece else np.zeros(0, dtype=np.intp)
+    # Junctions belong to the first piece through them.
+    first_piece = np.full(n, len(placed), dtype=np.intp)
+    np.minimum.at(first_piece, e.ravel(), np.repeat(ep, 2))
+    npc = np.where(npc < 0, first_piece, npc)
+    return CurveMesh(np.concatenate(points), np.concatenate(fixed_all), e, ep, npc, tuple(chains))
+
+
+def _refine_open(
+    project: Callable[[FloatArray], FloatArray], h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_]
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Algorithm 2 on an open polyline (the curve's own projection in Eq. 3.2)."""
+    for _ in range(40):
+        a, b = p[:-1], p[1:]
+        ha, hb = h(a), h(b)
+        split = np.hypot(*(b - a).T) > tol.BOUNDARY_REFINE * np.minimum(ha, hb)
+        if not split.any():
+            break
+        wa, wb = 1.0 / ha[split], 1.0 / hb[split]
+        new = project((a[split] * wa[:, None] + b[split] * wb[:, None]) / (wa + wb)[:, None])
+        key = np.concatenate([np.arange(len(p), dtype=float), np.flatnonzero(split) + 0.5])
+        order = np.argsort(key, kind="stable")
+        p = np.concatenate([p, new])[order]
+        fixed = np.concatenate([fixed, np.zeros(len(new), dtype=bool)])[order]
+    return p, fixed
+
+
+def _select_open(
+    project: Callable[[FloatArray], FloatArray],
+    h: SizeFn,
+    p: FloatArray,
+    fixed: NDArray[np.bool_],
+    closed: bool,
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """``round(S)`` segments at equal h-length between fixed vertices, balanced (Eq. 3.3) on
+    arc length, as :func:`_select` does on a loop; ``p`` starts and ends at fixed vertices."""
+    seglen = np.hypot(*np.diff(p, axis=0).T)
+    arc = np.concatenate([[0.0], np.cumsum(seglen)])
+    total = float(arc[-1])
+    hv = h(p)
+    s = np.concatenate([[0.0], np.cumsum(seglen / (0.5 * (hv[1:] + hv[:-1])))])
+    fixed_idx = np.flatnonzero(fixed)
+    s_start = s[fixed_idx[:-1]]
+    span = s[fixed_idx[1:]] - s_start
+    count = np.maximum(1, np.rint(span).astype(int))
+    if closed and count.sum() < 3:  # a closed curve needs three nodes at least
+        count[np.argmax(span)] += 3 - count.sum()
+    piece = np.repeat(np.arange(len(count)), count)
+    k = np.arange(len(piece)) - np.repeat(np.cumsum(count) - count, count)
+    t = np.interp(s_start[piece] + k * span[piece] / count[piece], s, arc)
+    t = np.r_[t, total]
+    is_fixed = np.r_[k == 0, True]
+    t[is_fixed] = arc[fixed_idx]
+    t = _balance(hv, t, is_fixed, arc, total)
+    out = np.stack([np.interp(t, arc, p[:, 0]), np.interp(t, arc, p[:, 1])], axis=1)
+    out[is_fixed] = p[fixed_idx]
+    free = ~is_fixed
+    if free.any():
+        out[free] = project(out[free])  # Eq. 3.2, onto the curve itself
+    return out, is_fixed

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import logging
 import math
 import signal
@@ -40,6 +41,7 @@ import time
 import traceback
 import warnings
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import IO, Any
 
@@ -375,6 +377,10 @@ def build_parser() -> argparse.ArgumentParser:
                      "<= local thickness / K (default 2; 0: off)")
     gen.add_argument("--method", choices=("injection", "distmesh"), default="injection",
                      help="the paper's algorithm (default) or the original DistMesh")
+    gen.add_argument("--regions", metavar="FILE",
+                     help="a GeoJSON file of regions (Polygon features, named by their 'region' or "
+                          "'name' property) and curves (LineString features); an input "
+                          "FeatureCollection's own 'region' and LineString features count too")
     gen.add_argument("--max-iterations", type=_positive_int, metavar="N",
                      help="cap on smoothing iterations")
     gen.add_argument("--progress", action="store_true",
@@ -523,7 +529,13 @@ def _generate(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
     if args.method == "distmesh" and tuned:
         raise ValueError(f"{', '.join(tuned)} apply to --method injection only")
 
-    source = load_domain(args.input)
+    spec, regions, curves = _constraints(args.input, args.regions)
+    source = load_domain(spec)
+    if spec != args.input:
+        source = replace(source, name=Path(args.input).stem if len(args.input) < 256 else "geojson")
+    if regions or curves:
+        log.info("%d regions (%s), %d curves (%s)", len(regions), ", ".join(regions), len(curves),
+                 ", ".join(curves))
     log.info("input %s: %r", source.name, source.domain)
     size: SizeLike
     if graded:
@@ -554,7 +566,8 @@ def _generate(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
                 options["feature_layers"] = args.feature_layers or None
             mesh = injmesh.generate(
                 source.domain, size, method=args.method, max_iterations=args.max_iterations,
-                target_nodes=args.nodes, callback=bar, **options,
+                target_nodes=args.nodes, callback=bar, regions=regions or None,
+                curves=curves or None, **options,
             )
         finally:
             if bar is not None:
@@ -574,6 +587,77 @@ def _generate(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
             f"{seconds:.2f} s\n"
         )
     return 0
+
+
+def _constraints(spec: str, regions_file: str | None) -> tuple[str, dict[str, Any], dict[str, Any]]:
+    """The domain spec and the regions and curves of ``generate``'s input and ``--regions``.
+
+    A GeoJSON FeatureCollection input (file or text) keeps its plain features as the domain;
+    its features with a ``region`` property become regions and its LineStrings curves
+    (:func:`injmesh.geometry.regions.split_geojson`).  In a ``--regions`` file every polygon is
+    a region, named by its ``region`` or ``name`` property, else ``region k``.
+    """
+    from .geometry.regions import split_geojson
+
+    regions: dict[str, Any] = {}
+    curves: dict[str, Any] = {}
+    obj = _geojson_object(spec)
+    if obj is not None:
+        rest, regions, curves = split_geojson(obj)
+        if regions or curves:
+            if rest is None:
+                raise ValueError(f"{_short(spec)} has regions or curves but no domain feature "
+                                 "(a feature without a 'region' property)")
+            spec = json.dumps(rest)
+    if regions_file is not None:
+        path = Path(regions_file)
+        if not path.is_file():
+            raise FileNotFoundError(f"no such regions file: {regions_file!r}")
+        try:
+            obj = json.loads(path.read_text(encoding="utf-8"))
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise ValueError(f"cannot read {regions_file!r} as GeoJSON: {exc}") from None
+        if isinstance(obj, dict) and obj.get("type") == "FeatureCollection":
+            for k, f in enumerate(obj.get("features") or [], start=1):
+                if isinstance(f, dict):
+                    props = f.setdefault("properties", {}) or {}
+                    f["properties"] = props
+                    kind = (f.get("geometry") or {}).get("type")
+                    if kind not in ("LineString", "MultiLineString") and props.get("region") is None:
+                        props["region"] = props.get("name") or f"region {k}"
+        elif isinstance(obj, dict) and obj.get("type") in ("Polygon", "MultiPolygon"):
+            obj = {"type": "FeatureCollection", "features": [
+                {"type": "Feature", "properties": {"region": path.stem}, "geometry": obj}]}
+        else:
+            raise ValueError(f"{regions_file!r} must hold a GeoJSON FeatureCollection or Polygon")
+        _, more_regions, more_curves = split_geojson(obj)
+        for name, r in more_regions.items():
+            if name in regions:
+                raise ValueError(f"region {name!r} is given twice")
+            regions[name] = r
+        for name, c in more_curves.items():
+            if name in curves:
+                raise ValueError(f"curve {name!r} is given twice")
+            curves[name] = c
+    return spec, regions, curves
+
+
+def _geojson_object(spec: str) -> Any:
+    """The parsed JSON of a GeoJSON input (text or a .geojson/.json file), else None."""
+    text = spec.strip()
+    if not text.startswith("{"):
+        path = Path(text)
+        if path.suffix.lower() not in (".geojson", ".json") or len(text) > 4096 or not path.is_file():
+            return None
+        text = path.read_text(encoding="utf-8", errors="replace")
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return None  # load_domain reports it
+
+
+def _short(spec: str) -> str:
+    return repr(spec if len(spec) < 60 else spec[:57] + "...")
 
 
 def _text_histogram(q: np.ndarray, width: int = 40) -> list[str]:

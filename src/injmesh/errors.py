@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from .geometry.base import GeometryError
+from .geometry.regions import CurveError, RegionError
 from .sizing import SizeError
 
 
@@ -28,4 +29,5 @@ class ConvergenceWarning(UserWarning):
     does not follow the boundary everywhere."""
 
 
-__all__ = ["ConvergenceWarning", "GeometryError", "MeshError", "NodeBudgetError", "SizeError"]
+__all__ = ["ConvergenceWarning", "CurveError", "GeometryError", "MeshError", "NodeBudgetError", "RegionError",
+           "SizeError"]

@@ -215,13 +215,14 @@ def write(mesh: Mesh, path: str | os.PathLike[str], *, file_format: str | None =
     with atomic_path(path) as tmp:
         if fmt == "npz":
             with open(tmp, "xb") as fh:
-                np.savez_compressed(
-                    fh,
-                    points=np.asarray(mesh.points, dtype=float),
-                    triangles=np.asarray(mesh.triangles, dtype=np.int64),
-                    boundary_edges=np.asarray(mesh.boundary_edges, dtype=np.int64),
-                    boundary_tags=np.asarray(mesh.boundary_tags, dtype=np.int64),
-                )
+                arrays: dict[str, Any] = {
+                    "points": np.asarray(mesh.points, dtype=float),
+                    "triangles": np.asarray(mesh.triangles, dtype=np.int64),
+                    "boundary_edges": np.asarray(mesh.boundary_edges, dtype=np.int64),
+                    "boundary_tags": np.asarray(mesh.boundary_tags, dtype=np.int64),
+                    **_region_arrays(mesh),
+                }
+                np.savez_compressed(fh, **arrays)
         else:
             _write_meshio(meshio, mesh, tmp, fmt)
 
@@ -278,6 +279,26 @@ def _write_meshio(meshio: Any, mesh: Mesh, tmp: Path, fmt: str) -> None:
     for tag in loop_tags:
         cells.append(("line", edges[tags == tag]))
         block_tags.append(tag + 1)
+    # Regions: one triangle block each (tag domain_tag + k), interior curves one line block each
+    # (after the regions' tags); the blocks' names go to the .msh physical groups.
+    region_names, curve_names = tuple(mesh.region_names), tuple(mesh.curve_names)
+    group_names: dict[int, tuple[str, int]] = {}
+    tri_tags = np.asarray(mesh.triangle_tags, dtype=np.int64)
+    if len(region_names) > 1 and len(tri_tags) == len(triangles):
+        cells[0] = ("triangle", triangles[tri_tags == 0])
+        for k in range(1, len(region_names)):
+            cells.append(("triangle", triangles[tri_tags == k]))
+            block_tags.append(domain_tag + k)
+            group_names[domain_tag + k] = (region_names[k], 2)
+    curve_edges = np.asarray(mesh.curve_edges, dtype=np.int64).reshape(-1, 2)
+    curve_tags = np.asarray(mesh.curve_tags, dtype=np.int64)
+    for c, name in enumerate(curve_names):
+        tag = domain_tag + len(region_names) + c
+        cells.append(("line", curve_edges[curve_tags == c]))
+        block_tags.append(tag)
+        group_names[tag] = (name, 1)
+    keep = [i for i, (_, data) in enumerate(cells) if len(data) or i == 0]
+    cells, block_tags = [cells[i] for i in keep], [block_tags[i] for i in keep]
     per_cell = [
         np.full(len(c), t, dtype=np.int64) for (_, c), t in zip(cells, block_tags, strict=True)
     ]
@@ -288,6 +309,8 @@ def _write_meshio(meshio: Any, mesh: Mesh, tmp: Path, fmt: str) -> None:
                        for i, (c, t) in enumerate(zip(cells, block_tags, strict=True))]
         field_data = {"domain": np.array([domain_tag, 2])}
         field_data.update({names[t]: np.array([t + 1, 1]) for t in loop_tags})
+        field_data.update({name: np.array([t, dim]) for t, (name, dim) in group_names.items()
+                           if t in block_tags})
         cell_data = {"gmsh:physical": per_cell, "gmsh:geometrical": geometrical}
         point_data = {}
         if fmt == "gmsh":
@@ -296,10 +319,16 @@ def _write_meshio(meshio: Any, mesh: Mesh, tmp: Path, fmt: str) -> None:
             if len(edges):
                 dim_tags[edges[:, 0], 0] = 1
                 dim_tags[edges[:, 0], 1] = tags + 1
+            # Interior nodes of a region lie on its own surface.
+            for (kind, data), tag in zip(cells[1:], block_tags[1:], strict=True):
+                if kind == "triangle":
+                    inner = np.unique(data)
+                    inner = inner[dim_tags[inner, 0] == 2]
+                    dim_tags[inner, 1] = tag
             # meshio writes an entity's physical group only if some node lies on the entity.
             for (_, data), tag in zip(cells, block_tags, strict=True):
                 dim = 2 if data.shape[1] == 3 else 1
-                entity = 1 if dim == 2 else tag
+                entity = 1 if dim == 2 and tag == domain_tag else tag
                 if not np.any((dim_tags[:, 0] == dim) & (dim_tags[:, 1] == entity)):
                     dim_tags[data[0, 0]] = (dim, entity)
             # Nodes are stored entity by entity; number them in that order so that the node
@@ -319,10 +348,12 @@ def _write_meshio(meshio: Any, mesh: Mesh, tmp: Path, fmt: str) -> None:
         out = meshio.Mesh(points, cells, cell_data={"medit:ref": per_cell})
         meshio.write(tmp, out, file_format="medit")
     elif fmt == "xdmf":
-        _write_xdmf(tmp, points, cells, np.concatenate(per_cell))
+        _write_xdmf(tmp, points, cells, np.concatenate(per_cell), _named_groups(group_names, block_tags,
+                                                                               domain_tag, names))
     else:
         # VTK wants 3-D points; pad here rather than let meshio warn on stderr.
         points3 = np.column_stack([points, np.zeros(len(points))])
+        # meshio's VTU writer drops field data: regions keep their tags, not their names.
         out = meshio.Mesh(points3, cells, cell_data={"cell_tags": per_cell})
         meshio.write(tmp, out, file_format=fmt)
 
@@ -344,11 +375,15 @@ def _write_xdmf(
     points: FloatArray,
     cells: list[tuple[str, NDArray[np.int64]]],
     tags: NDArray[np.int64],
+    groups: dict[str, tuple[int, int]] | None = None,
 ) -> None:
     import xml.etree.ElementTree as ET
 
     root = ET.Element("Xdmf", Version="3.0")
     grid = ET.SubElement(ET.SubElement(root, "Domain"), "Grid", Name="Grid")
+    # Region and curve names: <Information Name="name" Value="tag dimension"/>.
+    for name, (tag, dim) in (groups or {}).items():
+        ET.SubElement(grid, "Information", Name=name, Value=f"{tag} {dim}")
     geometry = ET.SubElement(grid, "Geometry", GeometryType="XY")
     item = ET.SubElement(geometry, "DataItem", DataType="Float", Dimensions=f"{len(points)} 2",
                          Format="XML", Precision="8")
@@ -372,7 +407,8 @@ def _write_xdmf(
     ET.ElementTree(root).write(tmp, encoding="utf-8", xml_declaration=True)
 
 
-def _read_xdmf(path: Path) -> tuple[FloatArray, IntArray, IntArray | None, IntArray | None] | None:
+def _read_xdmf(path: Path, extras: dict[str, Any] | None = None
+               ) -> tuple[FloatArray, IntArray, IntArray | None, IntArray | None] | None:
     """Read an XDMF 3 file whose data is inline XML; ``None`` if it needs meshio (HDF5 data)."""
     import xml.etree.ElementTree as ET
 
@@ -414,7 +450,18 @@ def _read_xdmf(path: Path) -> tuple[FloatArray, IntArray, IntArray | None, IntAr
             values = numbers(attribute, float)
             if len(values) == len(rows) and np.all(values == np.round(values)):
                 tags = values.astype(np.intp)[~is_tri]
+                if extras is not None:
+                    extras["triangle_values"] = values.astype(np.intp)[is_tri]
+                    extras["line_cells"] = rows[~is_tri, 2:]
+                    extras["line_values"] = tags
                 break
+    if extras is not None:
+        groups = {}
+        for info in grid.findall("Information"):
+            value = (info.get("Value") or "").split()
+            if info.get("Name") and len(value) == 2 and all(v.lstrip("-").isdigit() for v in value):
+                groups[(int(value[0]), int(value[1]))] = str(info.get("Name"))
+        extras["group_names"] = groups
     lines = rows[~is_tri, 2:]
     if tags is None:
         tags = np.zeros(len(lines), dtype=np.intp)
@@ -465,10 +512,11 @@ def read(path: str | os.PathLike[str]) -> Mesh:
         raise IsADirectoryError(f"{str(path)!r} is a directory")
     lines: IntArray | None = None
     line_tags: IntArray | None = None
+    extras: dict[str, Any] = {}
     if path.suffix.lower() == ".npz":
-        points, triangles, edges, tags = _read_npz(path)
+        points, triangles, edges, tags = _read_npz(path, extras)
     else:
-        points, triangles, lines, line_tags = _read_meshio(path)
+        points, triangles, lines, line_tags = _read_meshio(path, extras)
         edges, tags = None, None
 
     _validate(path, points, triangles)
@@ -487,12 +535,18 @@ def read(path: str | os.PathLike[str]) -> Mesh:
             tags = _tags_from_lines(edges, index[lines[ok]], line_tags[ok])
         else:
             tags = _loop_tags(points, edges)
-    return Mesh(points=points, triangles=triangles, boundary_edges=edges, boundary_tags=tags)
+    regions = _restore_regions(extras, index, len(triangles))
+    return Mesh(points=points, triangles=triangles, boundary_edges=edges, boundary_tags=tags, **regions)
 
 
-def _read_npz(path: Path) -> tuple[FloatArray, IntArray, IntArray | None, IntArray | None]:
+def _read_npz(path: Path, extras: dict[str, Any] | None = None
+              ) -> tuple[FloatArray, IntArray, IntArray | None, IntArray | None]:
     try:
         with np.load(path, allow_pickle=False) as data:
+            if extras is not None:
+                for key in _REGION_KEYS:
+                    if key in data.files:
+                        extras[key] = np.asarray(data[key])
             missing = {"points", "triangles"} - set(data.files)
             if missing:
                 raise MeshFileError(
@@ -527,11 +581,12 @@ _READ_FORMATS = {".msh": ["gmsh", "ansys"], ".mesh": ["medit"], ".vtu": ["vtu"],
 _READER_MODULES = {"gmsh22": "gmsh", "dolfin-xml": "dolfin"}
 
 
-def _read_meshio(path: Path) -> tuple[FloatArray, IntArray, IntArray | None, IntArray | None]:
+def _read_meshio(path: Path, extras: dict[str, Any] | None = None
+                 ) -> tuple[FloatArray, IntArray, IntArray | None, IntArray | None]:
     ext = path.suffix.lower()
     if ext in (".xdmf", ".xmf"):
         try:
-            inline = _read_xdmf(path)
+            inline = _read_xdmf(path, extras)
         except (ValueError, SyntaxError) as exc:  # ElementTree's ParseError is a SyntaxError
             raise MeshFileError(f"cannot read {str(path)!r} as XDMF: {exc}") from None
         if inline is not None:
@@ -572,6 +627,8 @@ def _read_meshio(path: Path) -> tuple[FloatArray, IntArray, IntArray | None, Int
         kinds = ", ".join(sorted({c.type for c in m.cells})) or "none"
         raise MeshFileError(f"{str(path)!r} has no triangles (cell types: {kinds})")
     triangles = np.concatenate([np.asarray(c.data) for _, c in blocks]).astype(np.intp)
+    if extras is not None:
+        _region_extras(m, blocks, extras)
     line_blocks = [(i, c) for i, c in enumerate(m.cells) if c.type == "line"]
     if not line_blocks:
         return points, triangles, None, None
@@ -650,3 +707,109 @@ def _loop_tags(points: FloatArray, edges: IntArray) -> IntArray:
     rank = np.empty(len(area), dtype=np.intp)
     rank[np.concatenate([first, rest])] = np.arange(len(area))
     return rank[comp]
+
+
+# --- regions and interior curves ---------------------------------------------------------------
+
+_REGION_KEYS = ("triangle_tags", "region_names", "curve_edges", "curve_tags", "curve_names")
+
+
+def _region_arrays(mesh: Mesh) -> dict[str, NDArray[Any]]:
+    """The region and curve arrays a ``.npz`` stores (nothing for a mesh without them)."""
+    if len(mesh.region_names) <= 1 and len(mesh.curve_names) == 0:
+        return {}
+    return {
+        "triangle_tags": np.asarray(mesh.triangle_tags, dtype=np.int64),
+        "region_names": np.asarray(mesh.region_names, dtype=str),
+        "curve_edges": np.asarray(mesh.curve_edges, dtype=np.int64).reshape(-1, 2),
+        "curve_tags": np.asarray(mesh.curve_tags, dtype=np.int64),
+        "curve_names": np.asarray(mesh.curve_names, dtype=str),
+    }
+
+
+def _region_extras(m: Any, blocks: list[tuple[int, Any]], extras: dict[str, Any]) -> None:
+    """Triangle tags, named groups and line cells of a meshio mesh, for :func:`_restore_regions`.
+
+    In a ``.msh`` file written by :func:`write`, every triangle block is a region named by a
+    2-D physical group ("domain" the rest) and every line block not on the boundary a curve
+    named by a 1-D group.  Other formats give integer tags without names.
+    """
+    for key in _TAG_KEYS:
+        data = m.cell_data.get(key)
+        if data is None:
+            continue
+        values = [np.asarray(data[i]).reshape(-1) for i, _ in blocks]
+        if all(np.issubdtype(v.dtype, np.integer) for v in values):
+            extras["triangle_values"] = np.concatenate(values).astype(np.intp)
+            line_blocks = [(i, c) for i, c in enumerate(m.cells) if c.type == "line"]
+            if line_blocks:
+                extras["line_cells"] = np.concatenate([np.asarray(c.data) for _, c in line_blocks])
+                extras["line_values"] = np.concatenate(
+                    [np.asarray(data[i]).reshape(-1) for i, _ in line_blocks]).astype(np.intp)
+            break
+    names: dict[tuple[int, int], str] = {}
+    for name, value in (getattr(m, "field_data", None) or {}).items():
+        v = np.asarray(value).reshape(-1)
+        if len(v) >= 2:
+            names[(int(v[0]), int(v[1]))] = str(name)
+    extras["group_names"] = names
+
+
+def _restore_regions(extras: dict[str, Any], index: IntArray, n_triangles: int) -> dict[str, Any]:
+    """Mesh keyword arguments for the regions and curves a file carries (none if it has none)."""
+    if "triangle_tags" in extras:  # injmesh's .npz
+        edges = np.asarray(extras.get("curve_edges", np.zeros((0, 2))), dtype=np.intp).reshape(-1, 2)
+        ok = np.all(index[edges] >= 0, axis=1) if len(edges) else np.zeros(0, dtype=bool)
+        return {
+            "triangle_tags": np.asarray(extras["triangle_tags"], dtype=np.intp),
+            "region_names": tuple(str(s) for s in extras.get("region_names", ("domain",))),
+            "curve_edges": index[edges[ok]],
+            "curve_tags": np.asarray(extras.get("curve_tags", np.zeros(len(edges))), dtype=np.intp)[ok],
+            "curve_names": tuple(str(s) for s in extras.get("curve_names", ())),
+        }
+    values = extras.get("triangle_values")
+    if values is None or len(values) != n_triangles:
+        return {}
+    names = extras.get("group_names", {})
+    distinct = np.unique(values)
+    if len(distinct) <= 1 and not any(dim == 1 and name not in _BOUNDARY_PREFIXES and
+                                      not name.startswith(_BOUNDARY_PREFIXES)
+                                      for (_, dim), name in names.items()):
+        return {}
+    # The rest of the domain is tag 0: the group named "domain", else the smallest value.
+    domain_value = next((t for (t, dim), n in names.items() if dim == 2 and n == "domain"), int(distinct[0]))
+    order = [domain_value] + [int(v) for v in distinct if v != domain_value]
+    rank = {v: k for k, v in enumerate(order)}
+    out: dict[str, Any] = {
+        "triangle_tags": np.array([rank[int(v)] for v in values], dtype=np.intp),
+        "region_names": tuple(names.get((v, 2), "domain" if k == 0 else f"region {k}")
+                              for k, v in enumerate(order)),
+    }
+    lines, line_values = extras.get("line_cells"), extras.get("line_values")
+    if lines is not None and line_values is not None:
+        curve_groups = sorted({t for (t, dim), n in names.items()
+                               if dim == 1 and not n.startswith(_BOUNDARY_PREFIXES)})
+        sel = np.isin(line_values, curve_groups)
+        edges = index[np.asarray(lines, dtype=np.intp)[sel]]
+        ok = np.all(edges >= 0, axis=1)
+        pos = {t: k for k, t in enumerate(curve_groups)}
+        out["curve_edges"] = edges[ok]
+        out["curve_tags"] = np.array([pos[int(v)] for v in line_values[sel][ok]], dtype=np.intp)
+        out["curve_names"] = tuple(names[(t, 1)] for t in curve_groups)
+    return out
+
+
+#: Names :func:`boundary_names` gives boundary components: those 1-D groups are no curves.
+_BOUNDARY_PREFIXES = ("outer boundary", "hole ")
+
+
+def _named_groups(group_names: dict[int, tuple[str, int]], block_tags: list[int], domain_tag: int,
+                  boundary: dict[int, str]) -> dict[str, tuple[int, int]]:
+    """Name -> (tag, dimension) of every block, for formats without physical groups; empty for
+    a mesh without regions or curves (its files stay as they were)."""
+    if not group_names:
+        return {}
+    out = {"domain": (domain_tag, 2)}
+    out.update({name: (t + 1, 1) for t, name in boundary.items()})
+    out.update({name: (t, dim) for t, (name, dim) in group_names.items() if t in block_tags})
+    return out

@@ -97,6 +97,19 @@ class Mesh:
         The size function h the mesh was made for, used by :meth:`size_report`.
     stats : MeshStats
         Iterations, convergence and timings.
+    triangle_tags : (m,) int array
+        Region of each triangle: 0 is the rest of the domain, k the k-th region given to
+        ``generate(..., regions=...)``.  All zero without regions.
+    region_names : tuple of str
+        Name of each region tag: ``region_names[0] == "domain"``, then the regions' names.
+    curve_edges : (c, 2) int array
+        Interior constraint edges (regions' boundaries inside the domain, user curves), each
+        an edge of two triangles, oriented along its curve.
+    curve_tags : (c,) int array
+        Curve of each interior edge, an index into ``curve_names``.
+    curve_names : tuple of str
+        The user curves' names in the order given, then one name per interface between two
+        regions, ``"a/b"`` for regions a and b in tag order (``"domain/inclusion"``).
     """
 
     points: FloatArray
@@ -105,12 +118,36 @@ class Mesh:
     boundary_tags: IntArray
     size: Callable[[FloatArray], FloatArray] | None = None
     stats: MeshStats = field(default_factory=MeshStats)
+    triangle_tags: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+    region_names: tuple[str, ...] = ("domain",)
+    curve_edges: IntArray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.intp))
+    curve_tags: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+    curve_names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        for name in ("points", "triangles", "boundary_edges", "boundary_tags"):
+        # Without regions every triangle is in the domain (tag 0).
+        if len(self.triangle_tags) == 0 and len(self.triangles):
+            object.__setattr__(self, "triangle_tags", np.zeros(len(self.triangles), dtype=np.intp))
+        object.__setattr__(self, "curve_edges", np.asarray(self.curve_edges, dtype=np.intp).reshape(-1, 2))
+        for name in ("points", "triangles", "boundary_edges", "boundary_tags", "triangle_tags",
+                     "curve_edges", "curve_tags"):
             a = np.array(getattr(self, name), copy=True)
             a.setflags(write=False)
             object.__setattr__(self, name, a)
+        object.__setattr__(self, "region_names", tuple(self.region_names))
+        object.__setattr__(self, "curve_names", tuple(self.curve_names))
+        if len(self.triangle_tags) != len(self.triangles):
+            raise ValueError(f"triangle_tags must have one tag per triangle ({len(self.triangles)}), "
+                             f"got {len(self.triangle_tags)}")
+        if len(self.curve_tags) != len(self.curve_edges):
+            raise ValueError(f"curve_tags must have one tag per curve edge ({len(self.curve_edges)}), "
+                             f"got {len(self.curve_tags)}")
+
+    def region_areas(self) -> FloatArray:
+        """Total area of each region, indexed by tag (``len(region_names)`` entries)."""
+        tags = np.asarray(self.triangle_tags, dtype=np.intp)
+        n = max(len(self.region_names), int(tags.max(initial=-1)) + 1)
+        return np.asarray(np.bincount(tags, weights=self.areas(), minlength=n), dtype=np.float64)
 
     @property
     def n_points(self) -> int:

@@ -88,12 +88,18 @@ Other choices the paper leaves open:
   (0.0716); the repair and quality passes, not the last thousandths of a step, set the
   quality.  5e-3 gave 2025 steps and worst q_min 0.818, 1e-2 1581 steps and 0.796.  On a
   100 000-node square: 57 steps against 123, q_mean 0.99942 (0.99944), q_min 0.828 (0.828).
+* **Interior curves** (regions' boundaries, cracks: :class:`Interfaces`).  Their nodes slide
+  like boundary nodes, each projected onto its own curve; their junctions are fixed.  At the
+  end their segments are recovered like the boundary's (``_recover_interfaces``), except that
+  a free node encroaching a missing segment is dropped, not pushed (pushed, it made slivers:
+  q 0.47 on the issue's square); they never bound the domain, so triangles are classified by
+  the boundary segments alone.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
@@ -104,7 +110,7 @@ from ._arrays import lower_wins
 from .geometry import Domain
 from .progress import Callback, report
 from .quality import triangle_quality
-from .triangulation import constrained_triangles, delaunay, inside_triangles
+from .triangulation import constrained_triangles, delaunay, inside_triangles, recover_segments
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -170,6 +176,57 @@ class SmoothResult:
     walls: IntArray
     wall_origin: IntArray
     unsettled: tuple[float, float] | None = None
+    #: Interior constraint segments in output numbering (split by recovery) and their curve.
+    interfaces: IntArray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.intp))
+    interface_group: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+
+
+#: ``project(points (m, 2), nodes (m,))``: each point onto the curve its node slides on.
+NodeProjector = Callable[[FloatArray, IntArray], FloatArray]
+
+
+@dataclass(frozen=True)
+class Interfaces:
+    """Interior constraint curves (regions' boundaries, user curves) for Step 3.
+
+    Their nodes come among the first ``n_fixed`` and slide like boundary nodes (rows of
+    ``sliding``), but on their own curve; their segments are recovered like the boundary's at
+    the end (every one an edge, so no triangle straddles a curve) without bounding the domain.
+
+    Attributes
+    ----------
+    segments : (k, 2) int array
+        Segments that must be mesh edges.
+    group : (k,) int array
+        Curve of each segment, >= 1 (0 is the domain's boundary).
+    node_group : (n_fixed,) int array
+        Curve of each node (0 for nodes on no interior curve).
+    project : callable
+        ``project(points (m, 2), group (m,))``: the nearest point on curve ``group`` (>= 1).
+    """
+
+    segments: IntArray
+    group: IntArray
+    node_group: IntArray
+    project: Callable[[FloatArray, IntArray], FloatArray]
+
+    def projector(self, domain: Domain, node_group: IntArray | None = None) -> NodeProjector:
+        """Project each node's point onto its own curve, or onto the domain's boundary."""
+        groups = self.node_group if node_group is None else node_group
+
+        def project(q: FloatArray, nodes: IntArray) -> FloatArray:
+            g = np.zeros(len(nodes), dtype=np.intp)
+            known = nodes < len(groups)
+            g[known] = groups[nodes[known]]
+            out = np.empty_like(q)
+            on_domain = g == 0
+            if on_domain.any():
+                out[on_domain] = domain.project(q[on_domain])
+            if not on_domain.all():
+                out[~on_domain] = self.project(q[~on_domain], g[~on_domain])
+            return out
+
+        return project
 
 
 def triangulate(domain: Domain, p: FloatArray, walls: IntArray | None = None) -> IntArray:
@@ -197,11 +254,14 @@ class _Relaxation:
         cap: int,
         active: NDArray[np.bool_] | None = None,
         tri: IntArray | None = None,
+        project: NodeProjector | None = None,
     ) -> None:
         from .kernels import smooth as kernels
 
         self._k = kernels
         self.domain, self.h, self.p = domain, h, p
+        #: Sliding nodes return to their own curve (the domain's boundary by default).
+        self.project: NodeProjector = project or (lambda q, nodes: domain.project(q))
         self.n_fixed, self.slide, self.walls = n_fixed, slide, walls
         self.callback, self.cap = callback, cap
         self.iterations = 0
@@ -222,6 +282,10 @@ class _Relaxation:
         self._cand = np.empty((len(self._free), 2))
         self._near = np.empty(len(self._free), dtype=np.intp)
         self._set_triangles(triangulate(domain, p, walls) if tri is None else tri)
+
+    def _projector(self, nodes: IntArray) -> Callable[[FloatArray], FloatArray]:
+        """Projection of the points of ``nodes`` onto their own curves (Eq. 3.2)."""
+        return lambda q: self.project(q, nodes)
 
     def _set_triangles(self, tri: IntArray) -> None:
         """Take a new triangulation (from scratch): its neighbour table for the flips."""
@@ -309,7 +373,7 @@ class _Relaxation:
                         worst, at = float(mv[a]), int(idx[a])
             if len(self._sl):
                 b = self._sl[:, 0]
-                mv = _slide(p, self._sl, self._total, self.hbar, self._ld_slide, self.domain.project)
+                mv = _slide(p, self._sl, self._total, self.hbar, self._ld_slide, self._projector(b))
                 a = int(np.argmax(mv))
                 if mv[a] > worst:
                     worst, at = float(mv[a]), int(b[a])
@@ -384,6 +448,7 @@ def smooth(
     smoothing: Smoothing = "hybrid",
     max_iterations: int | None = None,
     callback: Callback | None = None,
+    interfaces: Interfaces | None = None,
 ) -> SmoothResult:
     """Smooth the nodes (Step 3).
 
@@ -404,6 +469,9 @@ def smooth(
         See the module documentation.
     max_iterations : int, optional
         Cap on Euler steps over all phases, default ``MAX_ITERATIONS``.
+    interfaces : Interfaces, optional
+        Interior curves: their sliding nodes (in ``sliding``) stay on their own curve and their
+        segments become mesh edges (see :class:`Interfaces`).
 
     Returns
     -------
@@ -426,7 +494,8 @@ def smooth(
 
         kept[n_fixed:] = n_fixed + hilbert_order(p[n_fixed:])
         p = p[kept]
-    relax = _Relaxation(domain, h, p, n_fixed, slide, wall, callback, cap)
+    project = None if interfaces is None else interfaces.projector(domain)
+    relax = _Relaxation(domain, h, p, n_fixed, slide, wall, callback, cap, project=project)
     if cap == 0 or len(p) == n_fixed:
         converged = True
     elif smoothing == "attractive":
@@ -445,16 +514,25 @@ def smooth(
         converged = False
     p, tri, extra = _conform(domain, p, tri, n_fixed, wall)
     triangulations += extra
+    n_pre = len(p)
     p, tri, wall, origin, extra = _recover(domain, h, p, tri, n_fixed, wall)
     triangulations += extra
+    iseg = np.zeros((0, 2), dtype=np.intp)
+    igroup = np.zeros(0, dtype=np.intp)
+    if interfaces is not None and len(interfaces.segments):
+        p, tri, iseg, igroup, node_group, extra = _recover_interfaces(
+            domain, h, p, tri, n_fixed, n_pre, wall, interfaces)
+        triangulations += extra
+        project = interfaces.projector(domain, node_group)
     kept = np.concatenate([kept, np.full(len(p) - len(kept), -1)])
     if polish:
         movable = np.arange(len(p)) >= n_fixed
         movable[slide[:, 0]] = True
         on_boundary = np.zeros(len(p), dtype=bool)
         on_boundary[wall.ravel()] = True
+        on_boundary[iseg.ravel()] = True
         on_boundary[slide[:, 0]] = True
-        p = _optimize(domain, p, tri, movable, on_boundary, wall)
+        p = _optimize(domain, p, tri, movable, on_boundary, np.concatenate([wall, iseg]), project)
     # Drop nodes that no triangle uses (the triangulation leaves out coincident points, for example).
     used = np.zeros(len(p), dtype=bool)
     used[tri.ravel()] = True
@@ -462,8 +540,9 @@ def smooth(
     # A segment whose node is unused is lost; it stays in the list (pointing at -1) so that
     # the mesh's own check reports it.
     out_walls = np.where(used[wall], remap[wall], -1)
+    out_iseg = np.where(used[iseg], remap[iseg], -1)
     return SmoothResult(p[used], remap[tri], kept[used], iterations, bool(converged), triangulations,
-                        out_walls, origin, relax.unsettled)
+                        out_walls, origin, relax.unsettled, out_iseg, igroup)
 
 
 def _repair(
@@ -512,7 +591,7 @@ def _repair(
         active = rings(indptr, adj, touched.astype(np.int64), REPAIR_RING)
         # Fixed and sliding nodes come first and are never removed, so their indices hold.
         state = _Relaxation(relax.domain, relax.h, p, relax.n_fixed, relax.slide, relax.walls,
-                            relax.callback, relax.cap, active=active, tri=tri)
+                            relax.callback, relax.cap, active=active, tri=tri, project=relax.project)
         state.iterations = iterations
         state.run("spring", REPAIR_STEPS)
         p, tri = state.p, state.tri
@@ -599,16 +678,19 @@ def _conform(
     walls: IntArray,
     rounds: int = CONFORM_ROUNDS,
     pinned: IntArray | None = None,
+    interior: IntArray | None = None,
 ) -> tuple[FloatArray, IntArray, int]:
     """Recover boundary segments that Delaunay dropped.
 
     A segment is missing when a node lies in its diametral circle; such free nodes are pushed
     radially to 1.05 times the circle's radius and the nodes re-triangulated (at most
     ``rounds`` times).  Nodes in ``pinned`` (boundary nodes added by recovery) never move.
+    ``interior`` segments (interior curves) are recovered too but do not bound the domain.
     """
     count = 0
+    required = walls if interior is None else np.concatenate([walls, interior])
     for _ in range(rounds):
-        miss = missing_walls(tri, walls)
+        miss = missing_walls(tri, required)
         if len(miss) == 0:
             break
         a, b = p[miss[:, 0]], p[miss[:, 1]]
@@ -677,9 +759,10 @@ def _recover(
     return p, tri, walls, origin, count
 
 
-def _split_worthy(h: SizeFn, p: FloatArray, seg: IntArray) -> NDArray[np.bool_]:
+def _split_worthy(h: SizeFn, p: FloatArray, seg: IntArray, either_side: bool = False,
+                  alive: NDArray[np.bool_] | None = None) -> NDArray[np.bool_]:
     """Segments longer than ``SPLIT_MIN * h`` with a node inside their diametral circle on the
-    domain's side (left of a -> b)."""
+    domain's side (left of a -> b; on either side for an interior curve)."""
     if len(seg) == 0:
         return np.zeros(0, dtype=bool)
     a, b = p[seg[:, 0]], p[seg[:, 1]]
@@ -691,9 +774,86 @@ def _split_worthy(h: SizeFn, p: FloatArray, seg: IntArray) -> NDArray[np.bool_]:
     for i in np.flatnonzero(long_):
         near = np.asarray(tree.query_ball_point(mid[i], 0.5 * length[i] * (1 - 1e-9)), dtype=np.intp)
         near = near[(near != seg[i, 0]) & (near != seg[i, 1])]
+        if alive is not None:
+            near = near[alive[near]]
         e, c = b[i] - a[i], p[near] - a[i]
-        worthy[i] = bool(np.any(e[0] * c[:, 1] - e[1] * c[:, 0] > 0))
+        worthy[i] = len(near) > 0 if either_side else bool(np.any(e[0] * c[:, 1] - e[1] * c[:, 0] > 0))
     return worthy
+
+
+def _recover_interfaces(
+    domain: Domain,
+    h: SizeFn,
+    p: FloatArray,
+    tri: IntArray,
+    n_fixed: int,
+    n_pre: int,
+    walls: IntArray,
+    itf: Interfaces,
+) -> tuple[FloatArray, IntArray, IntArray, IntArray, IntArray, int]:
+    """Make every interior curve segment an edge, as :func:`_recover` does for the boundary.
+
+    A free node inside a missing segment's diametral circle (either side) is dropped rather
+    than pushed out: it is closer than half a segment to the curve, so the nodes around it are
+    crowded, and a node pushed to the circle makes a sliver with them.  A missing segment still
+    encroached (by curve or boundary nodes) and longer than ``SPLIT_MIN * h`` is split at its
+    midpoint projected onto its own curve; at most ``RECOVER_ROUNDS`` rounds.  Then every
+    segment still missing, boundary or interior, is recovered by flips.  Dropped nodes are in
+    no triangle (``smooth`` removes them).  Returns the points, triangles, segments, their
+    curve, every node's curve and the number of triangulations.
+    """
+    seg, group = itf.segments.copy(), itf.group.copy()
+    node_group = np.zeros(len(p), dtype=np.intp)
+    node_group[: len(itf.node_group)] = itf.node_group
+    alive = np.ones(len(p), dtype=bool)
+    count = 0
+    for _ in range(RECOVER_ROUNDS):
+        miss = missing_walls(tri, seg)
+        if len(miss) == 0:
+            break
+        a, b = p[miss[:, 0]], p[miss[:, 1]]
+        free = np.flatnonzero(alive[n_fixed:n_pre]) + n_fixed
+        if len(free):
+            tree = cKDTree(p[free])
+            for near in tree.query_ball_point(0.5 * (a + b), 0.5 * np.hypot(*(b - a).T) * (1 - 1e-9)):
+                alive[free[np.asarray(near, dtype=np.intp)]] = False
+        tri = _triangulate_alive(domain, p, walls, alive)
+        count += 1
+        lost = np.flatnonzero(~_has_edges(tri, seg))
+        k = lost[_split_worthy(h, p, seg[lost], either_side=True, alive=alive)]
+        if len(k) == 0:
+            continue
+        a_, b_ = seg[k, 0], seg[k, 1]
+        new = itf.project(0.5 * (p[a_] + p[b_]), group[k])
+        ids = len(p) + np.arange(len(k))
+        p = np.concatenate([p, new])
+        alive = np.r_[alive, np.ones(len(k), dtype=bool)]
+        node_group = np.concatenate([node_group, group[k]])
+        head = seg.copy()
+        head[k, 1] = ids
+        seg = np.concatenate([head, np.stack([ids, b_], axis=1)])
+        group = np.concatenate([group, group[k]])
+        tri = _triangulate_alive(domain, p, walls, alive)
+        count += 1
+    required = np.concatenate([walls, seg])
+    if not _has_edges(tri, required).all():
+        idx = np.flatnonzero(alive)
+        inv = np.full(len(p), -1, dtype=np.intp)
+        inv[idx] = np.arange(len(idx))
+        full, _ = recover_segments(p[idx], delaunay(p[idx]), inv[required])
+        tri = idx[inside_triangles(p[idx], full, domain.sdf, inv[walls])]
+        count += 1
+    return p, tri, seg, group, node_group, count
+
+
+def _triangulate_alive(domain: Domain, p: FloatArray, walls: IntArray, alive: NDArray[np.bool_]) -> IntArray:
+    """:func:`triangulate` of the nodes flagged ``alive``, in the numbering of all nodes."""
+    if alive.all():
+        return triangulate(domain, p, walls)
+    idx = np.flatnonzero(alive)
+    inv = np.full(len(p), -1, dtype=np.intp)
+    inv[idx] = np.arange(len(idx))
+    return idx[triangulate(domain, p[idx], inv[walls])]
 
 
 def _has_edges(tri: IntArray, walls: IntArray) -> NDArray[np.bool_]:
@@ -712,6 +872,7 @@ def _optimize(
     movable: NDArray[np.bool_],
     on_boundary: NDArray[np.bool_],
     walls: IntArray,
+    project: NodeProjector | None = None,
 ) -> FloatArray:
     """Move free nodes of bad triangles where their star's worst quality rises.
 
@@ -785,7 +946,8 @@ def _optimize(
         for frac in (1.0, 0.5, 0.25, 0.125):
             step = p[move] + frac * (target - p[move])
             if on_bnd.any():
-                step[on_bnd] = domain.project(step[on_bnd])
+                step[on_bnd] = (domain.project(step[on_bnd]) if project is None
+                                else project(step[on_bnd], move[on_bnd]))
             trial = p.copy()
             trial[move] = step
             q_new = triangle_quality(trial, sub)

@@ -1375,14 +1375,15 @@ def _as_points(points: ArrayLike) -> FloatArray:
     return np.ascontiguousarray(p)
 
 
-def hilbert_order(points: FloatArray) -> IntArray:
+def hilbert_order(points: FloatArray) -> NDArray[np.intp]:
     """Indices of ``points`` along a Hilbert curve over their bounding box (ties by index).
 
     Renumbering nodes in this order puts mesh neighbours near each other in memory.
     """
     if len(points) == 0:
         return np.zeros(0, dtype=np.intp)
-    return np.argsort(_hilbert_keys(np.ascontiguousarray(points, dtype=np.float64)), kind="stable")
+    keys = _hilbert_keys(np.ascontiguousarray(points, dtype=np.float64))
+    return np.argsort(keys, kind="stable").astype(np.intp, copy=False)
 
 
 def insertion_order(points: FloatArray) -> IntArray:

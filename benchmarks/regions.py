@@ -1,0 +1,92 @@
+"""Benchmark: regions and interior curves (issue 9) against the same meshes without them.
+
+Two tables:
+
+1. The paper's six domains, each meshed as it is and with one circular inclusion (a region):
+   N, q_min, q_mean, the inclusion's area error (its polygon against the circle) and seconds.
+2. A unit square of about ``--large-nodes`` nodes (default 1e5), without and with the issue's
+   constraints (two circular inclusions and a polyline crack): the time ratio, which issue 9
+   wants within 1.3x, and the stages' seconds.
+
+Seconds are the best of ``--repeat`` calls in one process; the machines these run on are
+shared and noisy, so compare the ratios measured in one run, not seconds across runs.
+
+Usage::
+
+    python benchmarks/regions.py [--repeat 1] [--skip-large] [--large-nodes 1e5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+import injmesh
+from injmesh import Circle, Rectangle
+from injmesh.cases import CASES
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _bench import best_time, machine_note  # noqa: E402
+
+#: One circular inclusion in each of the paper's domains (centre, radius), as in the tests.
+INCLUSIONS = {
+    "unit_disc": ((0.4, 0.0), 0.25),
+    "square_with_hole": ((0.2, 0.2), 0.12),
+    "circle_with_hole": ((0.55, 0.0), 0.2),
+    "square_with_four_holes": ((0.0, 0.0), 0.25),
+    "two_circles_and_square": ((-0.4, -0.3), 0.3),
+    "l_shape": ((0.8, 0.2), 0.1),
+}
+
+SQUARE_REGIONS = {"a": Circle((0.3, 0.3), 0.15), "b": Circle((0.7, 0.65), 0.2)}
+SQUARE_CURVES = {"crack": np.array([(0.1, 0.8), (0.3, 0.75), (0.5, 0.9)])}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=1, help="timing repeats (best is reported)")
+    ap.add_argument("--skip-large", action="store_true", help="skip the large unit square")
+    ap.add_argument("--large-nodes", type=float, default=1e5, help="target nodes of the square")
+    args = ap.parse_args()
+    warnings.simplefilter("ignore", injmesh.ConvergenceWarning)
+    print(f"_{machine_note()}; best of {args.repeat}._\n")
+    print("| case | N | q_min | q_mean | s | N (inclusion) | q_min | q_mean | area error | s | ratio |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    injmesh.generate(Rectangle((0, 0), (1, 1)), 0.2, regions={"w": Circle((0.5, 0.5), 0.2)})  # warm-up
+    for name, case in CASES.items():
+        t0, plain = best_time(lambda c=case: injmesh.generate(c.geometry, c.size), args.repeat)
+        centre, radius = INCLUSIONS[name]
+        regions = {"inclusion": Circle(centre, radius)}
+        t1, mesh = best_time(lambda c=case, r=regions: injmesh.generate(c.geometry, c.size, regions=r),
+                             args.repeat)
+        q0, q1 = plain.quality(), mesh.quality()
+        err = mesh.region_areas()[1] / (np.pi * radius**2) - 1
+        print(f"| {name} | {plain.n_points} | {q0.min():.3f} | {q0.mean():.3f} | {t0:.2f} | "
+              f"{mesh.n_points} | {q1.min():.3f} | {q1.mean():.3f} | {err:+.2%} | {t1:.2f} | "
+              f"{t1 / t0:.2f} |")
+
+    if args.skip_large:
+        return
+    h = float(np.sqrt(2 / (np.sqrt(3) * args.large_nodes)))
+    square = Rectangle((0, 0), (1, 1))
+    print(f"\nUnit square, h = {h:.5f}, two circular inclusions and a crack:\n")
+    print("| mesh | N | q_min | q_mean | iterations | seconds | stages |")
+    print("|---|---|---|---|---|---|---|")
+    times = []
+    for label, kw in (("without regions", {}),
+                      ("with regions and crack", {"regions": SQUARE_REGIONS, "curves": SQUARE_CURVES})):
+        t, mesh = best_time(lambda k=kw: injmesh.generate(square, h, max_nodes=10**8, **k), args.repeat)
+        times.append(t)
+        q = mesh.quality()
+        stages = ", ".join(f"{k} {v:.1f}" for k, v in mesh.stats.seconds.items())
+        print(f"| {label} | {mesh.n_points} | {q.min():.3f} | {q.mean():.3f} | {mesh.stats.iterations} | "
+              f"{t:.1f} | {stages} |")
+    print(f"\nTime with / without regions: {times[1] / times[0]:.2f}x (issue 9 target: <= 1.3x)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,548 @@
+"""Regions and interior curves: the constraint network the mesh must follow (issue 9).
+
+A *region* is a sub-domain of the domain (a :class:`~injmesh.geometry.Domain`, or a plain
+``d(p)`` with its bbox); regions may touch each other and the outer boundary but not overlap.
+A *curve* is an open or closed polyline ``(k, 2)`` inside the domain (an interface, a crack, a
+fault, a sensor line).  Both become *pieces*: polylines between *junctions*, where
+
+* a piece is the part of a region's boundary inside the domain that no earlier region already
+  has (a boundary shared by two regions is one piece, meshed once), or a user curve;
+* junctions are the points where pieces end, cross or meet the outer boundary, plus the
+  regions' corners and the curves' end points.  They become fixed nodes.
+
+Every piece carries its own exact projection (the region's, or the polyline's), so Step 1 and
+the smoothing keep its nodes on it.  Inputs are checked here, once: a region that leaves the
+domain, two regions that overlap, a curve that leaves the domain or crosses itself each raise
+:class:`RegionError` or :class:`CurveError` naming the region or curve and a point.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .. import _tolerances as tol
+from .base import Domain, GeometryError
+from .brep import BRep
+from .implicit import as_domain
+from .tracing import grid_spacing
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+Projector = Callable[[FloatArray], FloatArray]
+
+#: Alternating projections that place a crossing of two curved pieces on both.
+CROSSING_ITERATIONS = 20
+
+
+class RegionError(GeometryError):
+    """A region is invalid: empty, partly outside the domain, or overlapping another region."""
+
+
+class CurveError(GeometryError):
+    """An interior curve is invalid: too few points, not finite, leaving the domain, or crossing
+    itself."""
+
+
+@dataclass(frozen=True)
+class Piece:
+    """One stretch of interior constraint curve.
+
+    Attributes
+    ----------
+    points : (k, 2) array
+        A polyline on the curve (for a closed piece the first vertex is not repeated).
+    fixed : (k,) bool array
+        Vertices that must be nodes: junctions, end points, corners.
+    closed : bool
+        Whether the last vertex joins the first.
+    project : callable
+        Nearest point on the piece's curve of each of ``(n, 2)`` points.
+    owner : int
+        Region number (1-based) of a region's boundary, or ``-1 - c`` for user curve c.
+    """
+
+    points: FloatArray
+    fixed: BoolArray
+    closed: bool
+    project: Projector
+    owner: int
+
+
+@dataclass(frozen=True)
+class Constraints:
+    """Regions and curves made ready for meshing.
+
+    Attributes
+    ----------
+    pieces : tuple of Piece
+    regions : tuple of Domain
+        The regions, numbered from 1 (tag 0 is the rest of the domain).
+    region_names : tuple of str
+        ``region_names[0] == "domain"``, then the regions' names in the order given.
+    curve_names : tuple of str
+        The user curves' names in the order given.
+    boundary_junctions : (j, 2) array
+        Junctions on the domain's boundary: Step 1 must have nodes there.
+    """
+
+    pieces: tuple[Piece, ...]
+    regions: tuple[Domain, ...]
+    region_names: tuple[str, ...]
+    curve_names: tuple[str, ...]
+    boundary_junctions: FloatArray
+
+    def region_of(self, q: FloatArray) -> NDArray[np.intp]:
+        """Region number of each point (0 when in none): the region with the most negative d."""
+        tags = np.zeros(len(q), dtype=np.intp)
+        best = np.zeros(len(q))
+        for k, r in enumerate(self.regions, start=1):
+            d = r.sdf(q)
+            inside = d < best
+            tags[inside] = k
+            best[inside] = d[inside]
+        return tags
+
+
+RegionsLike = Mapping[str, "Domain | Callable[[FloatArray], FloatArray] | object"]
+CurvesLike = Mapping[str, ArrayLike] | Sequence[ArrayLike]
+
+
+def build_constraints(
+    domain: Domain,
+    regions: RegionsLike | None,
+    curves: CurvesLike | None,
+    h_min: float,
+) -> Constraints:
+    """Check regions and curves against the domain and split them into pieces.
+
+    Parameters
+    ----------
+    domain : Domain
+        The (cleaned) domain.
+    regions : mapping name -> Domain or callable, optional
+        Sub-regions; a plain callable uses the domain's bbox.
+    curves : mapping name -> (k, 2) array_like, or a sequence of them, optional
+        Polylines; a sequence names them ``"curve 1"``, ``"curve 2"``, ...  A polyline whose
+        last point equals its first is closed.
+    h_min : float
+        Smallest target size: the resolution of traced region boundaries.
+
+    Raises
+    ------
+    RegionError, CurveError
+        What is wrong, with the region's or curve's name and a point.
+
+    Examples
+    --------
+    >>> from injmesh import Circle, Rectangle
+    >>> c = build_constraints(Rectangle((0, 0), (1, 1)), {"disc": Circle((0.5, 0.5), 0.2)},
+    ...                       [[(0.1, 0.1), (0.2, 0.3)]], 0.05)
+    >>> c.region_names, c.curve_names, [p.closed for p in c.pieces]
+    (('domain', 'disc'), ('curve 1',), [True, False])
+    """
+    diam = domain.diameter
+    eps = tol.ON_BOUNDARY * diam
+    names, doms = _regions(domain, regions)
+    curve_names, lines = _curves(curves)
+    pieces: list[Piece] = []
+    for k, (name, r) in enumerate(zip(names, doms, strict=True), start=1):
+        pieces += _region_pieces(domain, name, r, doms[: k - 1], k, h_min, eps)
+    _check_overlaps(names, doms, h_min, eps)
+    for c, (name, line) in enumerate(zip(curve_names, lines, strict=True)):
+        pieces.append(_curve_piece(domain, name, line, c, h_min, eps))
+    pieces = _join(pieces, eps)
+    junctions = [p.points[p.fixed] for p in pieces]
+    allj = np.concatenate(junctions) if junctions else np.empty((0, 2))
+    on = np.abs(domain.sdf(allj)) <= eps if len(allj) else np.zeros(0, dtype=bool)
+    bj = _unique_points(allj[on], eps)
+    return Constraints(tuple(pieces), tuple(doms), ("domain", *names), tuple(curve_names), bj)
+
+
+# --- input ------------------------------------------------------------------------------------
+
+
+def _regions(domain: Domain, regions: RegionsLike | None) -> tuple[list[str], list[Domain]]:
+    if regions is None:
+        return [], []
+    if not isinstance(regions, Mapping):
+        raise TypeError(f"regions must be a mapping name -> Domain, got {type(regions).__name__}")
+    names, doms = [], []
+    for name, r in regions.items():
+        if not isinstance(name, str) or not name.strip():
+            raise RegionError(f"region names must be non-empty strings, got {name!r}")
+        if name == "domain":
+            raise RegionError("'domain' names the rest of the domain; choose another region name")
+        try:
+            d = as_domain(r, bbox=domain.bbox if callable(r) and not isinstance(r, Domain) else None)
+        except (TypeError, ValueError) as exc:
+            raise RegionError(f"region {name!r}: {exc}") from None
+        names.append(name)
+        doms.append(d)
+    return names, doms
+
+
+def _curves(curves: CurvesLike | None) -> tuple[list[str], list[FloatArray]]:
+    if curves is None:
+        return [], []
+    if isinstance(curves, Mapping):
+        items = list(curves.items())
+    else:
+        items = [(f"curve {k}", c) for k, c in enumerate(curves, start=1)]
+    names, lines = [], []
+    for name, c in items:
+        if not isinstance(name, str) or not name.strip():
+            raise CurveError(f"curve names must be non-empty strings, got {name!r}")
+        try:
+            a = np.asarray(c, dtype=float)
+        except (TypeError, ValueError):
+            raise CurveError(f"curve {name!r} is not an (k, 2) array of numbers") from None
+        if a.ndim != 2 or a.shape[1] != 2 or len(a) < 2:
+            raise CurveError(f"curve {name!r} must have shape (k, 2) with k >= 2, got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise CurveError(f"curve {name!r} has a coordinate that is not finite")
+        # Repeated consecutive points carry nothing.
+        keep = np.r_[True, np.any(a[1:] != a[:-1], axis=1)]
+        a = a[keep]
+        if len(a) < 2:
+            raise CurveError(f"curve {name!r} has fewer than two distinct points")
+        names.append(name)
+        lines.append(a)
+    return names, lines
+
+
+# --- pieces -----------------------------------------------------------------------------------
+
+
+def _region_pieces(
+    domain: Domain, name: str, region: Domain, earlier: list[Domain], k: int, h_min: float, eps: float
+) -> list[Piece]:
+    """The stretches of a region's boundary inside the domain and on no earlier region."""
+    try:
+        loops = region.boundary_loops(grid_spacing(region.bbox, h_min))
+    except GeometryError as exc:
+        raise RegionError(f"region {name!r}: {exc}") from None
+    if not loops:
+        raise RegionError(f"region {name!r} is empty")
+    allv = np.concatenate(loops)
+    out = domain.sdf(allv) > max(eps, tol.ON_BOUNDARY * region.diameter)
+    if out.any():
+        x, y = allv[np.argmax(out)]
+        raise RegionError(f"region {name!r} extends outside the domain near ({x:.6g}, {y:.6g})")
+    corners = region.corners()
+    pieces = []
+    for loop in loops:
+        nxt = np.roll(loop, -1, axis=0)
+        mid = region.project(0.5 * (loop + nxt))
+        if np.any(domain.sdf(mid) > eps):
+            x, y = mid[np.argmax(domain.sdf(mid) > eps)]
+            raise RegionError(f"region {name!r} extends outside the domain near ({x:.6g}, {y:.6g})")
+        # An edge along the outer boundary or along an earlier region is not a new curve.
+        drop = np.abs(domain.sdf(mid)) <= eps
+        for e in earlier:
+            drop |= np.abs(e.sdf(mid)) <= eps
+        fixed = np.zeros(len(loop), dtype=bool)
+        if len(corners):
+            from scipy.spatial import cKDTree
+
+            dist, _ = cKDTree(corners).query(loop)
+            fixed = dist <= eps
+        if not drop.any():
+            pieces.append(Piece(loop, fixed, True, region.project, k))
+            continue
+        # Runs of kept edges, each from a vertex after a dropped edge to one before the next.
+        start = int(np.argmax(drop)) + 1
+        order = (np.arange(len(loop)) + start) % len(loop)
+        d = drop[order]
+        run = 0
+        while run < len(d):
+            if d[run]:
+                run += 1
+                continue
+            end = run
+            while end < len(d) and not d[end]:
+                end += 1
+            idx = order[np.arange(run, end + 1) % len(loop)]  # end edge's far vertex included
+            f = fixed[idx].copy()
+            f[[0, -1]] = True
+            pieces.append(Piece(loop[idx], f, False, region.project, k))
+            run = end
+    return pieces
+
+
+def _check_overlaps(names: list[str], doms: list[Domain], h_min: float, eps: float) -> None:
+    """Two regions overlap when a boundary vertex of one lies strictly inside the other."""
+    loops = [np.concatenate(d.boundary_loops(grid_spacing(d.bbox, h_min))) for d in doms]
+    for i in range(len(doms)):
+        for j in range(len(doms)):
+            if i == j:
+                continue
+            d = doms[j].sdf(loops[i])
+            deep = d < -max(eps, 1e-3 * h_min)
+            if deep.any():
+                x, y = loops[i][np.argmax(deep)]
+                a, b = sorted((names[i], names[j]), key=names.index)
+                raise RegionError(f"regions {a!r} and {b!r} overlap near ({x:.6g}, {y:.6g})")
+
+
+def _curve_piece(domain: Domain, name: str, line: FloatArray, c: int, h_min: float, eps: float
+                 ) -> Piece:
+    closed = len(line) > 3 and bool(np.all(line[0] == line[-1]))
+    if closed:
+        line = line[:-1]
+    _check_inside(domain, name, line, closed, h_min, eps)
+    _check_simple(name, line, closed, eps)
+    # The projector: an exact boundary representation of the polyline (open: there and back).
+    loop = line if closed else np.concatenate([line, line[-2:0:-1]])
+    b = BRep(loop, np.roll(loop, -1, axis=0), np.zeros_like(loop), np.zeros(len(loop)),
+             np.array([0, len(loop)]))
+    fixed = np.zeros(len(line), dtype=bool)
+    if not closed:
+        fixed[[0, -1]] = True
+    # Vertices where the polyline turns are nodes (the user drew them); straight runs are not.
+    prv = np.roll(line, 1, axis=0) - line
+    nxt = np.roll(line, -1, axis=0) - line
+    cross = prv[:, 0] * nxt[:, 1] - prv[:, 1] * nxt[:, 0]
+    turn = 180.0 - np.degrees(np.abs(np.arctan2(cross, np.einsum("ij,ij->i", prv, nxt))))
+    bend = turn > 0.1
+    if not closed:
+        bend[[0, -1]] = False
+    fixed |= bend
+    # A vertex on the outer boundary is a junction with it.
+    fixed |= np.abs(domain.sdf(line)) <= eps
+    return Piece(line, fixed, closed, b.project, -1 - c)
+
+
+def _check_inside(domain: Domain, name: str, line: FloatArray, closed: bool, h_min: float, eps: float
+                  ) -> None:
+    """Vertices and points every quarter h_min along the segments must be inside or on."""
+    a = line
+    b = np.roll(line, -1, axis=0)
+    if not closed:
+        a, b = a[:-1], b[:-1]
+    n = np.maximum(1, np.ceil(np.hypot(*(b - a).T) / (0.25 * h_min)).astype(int))
+    n = np.minimum(n, 10_000)
+    seg = np.repeat(np.arange(len(a)), n + 1)
+    t = (np.arange(len(seg)) - np.repeat(np.cumsum(n + 1) - (n + 1), n + 1)) / np.repeat(n, n + 1)
+    q = a[seg] + t[:, None] * (b - a)[seg]
+    d = domain.sdf(q)
+    out = d > eps
+    if out.any():
+        x, y = q[np.argmax(out)]
+        raise CurveError(f"curve {name!r} leaves the domain near ({x:.6g}, {y:.6g})")
+
+
+def _check_simple(name: str, line: FloatArray, closed: bool, eps: float) -> None:
+    """No two non-adjacent segments of a curve meet (a closed curve's ends are adjacent)."""
+    a = line
+    b = np.roll(line, -1, axis=0)
+    if not closed:
+        a, b = a[:-1], b[:-1]
+    m = len(a)
+    if m < 2:
+        return
+    step = max(1, 2_000_000 // m)
+    for s in range(0, m, step):
+        i = np.arange(s, min(m, s + step))[:, None]
+        j = np.arange(m)[None, :]
+        pts = _segment_hits(a[i[:, 0]], b[i[:, 0]], a, b, eps)
+        adjacent = (np.abs(i - j) <= 1) | (closed & (np.abs(i - j) == m - 1))
+        hit = pts & ~adjacent & (j > i)
+        # Adjacent segments that fold back on each other overlap too.
+        if hit.any():
+            r, cc = np.argwhere(hit)[0]
+            x, y = _intersection(a[i[r, 0]], b[i[r, 0]], a[cc], b[cc])
+            raise CurveError(f"curve {name!r} crosses itself near ({x:.6g}, {y:.6g})")
+    u = b - a
+    w = np.roll(u, -1, axis=0) if closed else u[1:]
+    uu = u if closed else u[:-1]
+    cross = uu[:, 0] * w[:, 1] - uu[:, 1] * w[:, 0]
+    back = (np.abs(cross) <= 1e-12 * np.hypot(*uu.T) * np.hypot(*w.T)) & (np.einsum("ij,ij->i", uu, w) < 0)
+    if back.any():
+        x, y = b[np.argmax(back)]
+        raise CurveError(f"curve {name!r} crosses itself (turns back on itself) at ({x:.6g}, {y:.6g})")
+
+
+def _segment_hits(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray, eps: float
+                  ) -> BoolArray:
+    """Whether segment a[i]-b[i] meets segment c[j]-d[j], for all i, j (touching counts)."""
+
+    def orient(p: FloatArray, q: FloatArray, r: FloatArray) -> FloatArray:
+        u, v = q - p, r - p
+        return np.asarray(u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0])
+
+    A, B = a[:, None, :], b[:, None, :]
+    C, D = c[None, :, :], d[None, :, :]
+    scale = eps * (np.hypot(*(B - A).transpose(2, 0, 1)) + np.hypot(*(D - C).transpose(2, 0, 1)))
+    o1, o2 = orient(A, B, C), orient(A, B, D)
+    o3, o4 = orient(C, D, A), orient(C, D, B)
+    proper = (o1 * o2 <= 0) & (o3 * o4 <= 0)
+    # Collinear segments meet when their boxes overlap.
+    lo1, hi1 = np.minimum(A, B), np.maximum(A, B)
+    lo2, hi2 = np.minimum(C, D), np.maximum(C, D)
+    boxes = np.all((lo1 <= hi2 + eps) & (lo2 <= hi1 + eps), axis=-1)
+    collinear = (np.abs(o1) <= scale) & (np.abs(o2) <= scale)
+    return np.asarray(boxes & (proper | collinear))
+
+
+def _intersection(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray) -> FloatArray:
+    """The crossing of lines a-b and c-d (a's midpoint if parallel)."""
+    r, s = b - a, d - c
+    den = r[0] * s[1] - r[1] * s[0]
+    if den == 0:
+        return 0.5 * (a + b)
+    t = ((c[0] - a[0]) * s[1] - (c[1] - a[1]) * s[0]) / den
+    return a + t * r
+
+
+# --- junctions between pieces -----------------------------------------------------------------
+
+
+def _join(pieces: list[Piece], eps: float) -> list[Piece]:
+    """Insert as fixed vertices the points where pieces cross or where one ends on another."""
+    extra: list[list[FloatArray]] = [[] for _ in pieces]
+    for i, pi in enumerate(pieces):
+        ai, bi = _segments(pi)
+        for j in range(i + 1, len(pieces)):
+            pj = pieces[j]
+            aj, bj = _segments(pj)
+            lo_i, hi_i = pi.points.min(axis=0), pi.points.max(axis=0)
+            lo_j, hj = pj.points.min(axis=0), pj.points.max(axis=0)
+            if np.any(lo_i > hj + eps) or np.any(lo_j > hi_i + eps):
+                continue
+            step = max(1, 2_000_000 // max(len(aj), 1))
+            for s in range(0, len(ai), step):
+                hit = _segment_hits(ai[s:s + step], bi[s:s + step], aj, bj, eps)
+                for r, c in np.argwhere(hit).tolist():
+                    x = _intersection(ai[s + r], bi[s + r], aj[c], bj[c])
+                    for _ in range(CROSSING_ITERATIONS):
+                        x = pj.project(pi.project(x[None, :]))[0]
+                    extra[i].append(x)
+                    extra[j].append(x)
+    out = []
+    for p, more in zip(pieces, extra, strict=True):
+        if not more:
+            out.append(p)
+            continue
+        out.append(_insert(p, _unique_points(np.array(more), 10 * eps), eps))
+    return out
+
+
+def _segments(p: Piece) -> tuple[FloatArray, FloatArray]:
+    if p.closed:
+        return p.points, np.roll(p.points, -1, axis=0)
+    return p.points[:-1], p.points[1:]
+
+
+def _insert(p: Piece, q: FloatArray, eps: float) -> Piece:
+    """The piece with the points ``q`` (on it) inserted as fixed vertices."""
+    a, b = _segments(p)
+    ab = b - a
+    ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+    t = np.clip(np.einsum("qmk,mk->qm", q[:, None, :] - a[None], ab) / ab2, 0, 1)
+    dist = np.hypot(*(q[:, None, :] - a[None] - t[..., None] * ab[None]).transpose(2, 0, 1))
+    seg = np.argmin(dist, axis=1)
+    tt = t[np.arange(len(q)), seg]
+    pts, fixed = p.points.copy(), p.fixed.copy()
+    # A point at a vertex fixes the vertex; others are inserted in order along the piece.
+    near_a = np.hypot(*(q - a[seg]).T) <= 10 * eps
+    near_b = np.hypot(*(q - b[seg]).T) <= 10 * eps
+    vb = (seg + 1) % len(pts)
+    fixed[seg[near_a]] = True
+    fixed[vb[near_b & ~near_a]] = True
+    new = ~near_a & ~near_b
+    if new.any():
+        key = np.concatenate([np.arange(len(pts), dtype=float), seg[new] + np.clip(tt[new], 1e-9, 1 - 1e-9)])
+        order = np.argsort(key, kind="stable")
+        pts = np.concatenate([pts, q[new]])[order]
+        fixed = np.concatenate([fixed, np.ones(int(new.sum()), dtype=bool)])[order]
+    return Piece(pts, fixed, p.closed, p.project, p.owner)
+
+
+def _unique_points(q: FloatArray, eps: float) -> FloatArray:
+    """``q`` with points closer than ``eps`` to an earlier one dropped."""
+    if len(q) < 2:
+        return q
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(q).query_pairs(eps, output_type="ndarray")
+    keep = np.ones(len(q), dtype=bool)
+    if len(pairs):
+        keep[np.maximum(pairs[:, 0], pairs[:, 1])] = False
+    return q[keep]
+
+
+
+
+
+def split_geojson(obj: object) -> tuple[object | None, dict[str, Domain], dict[str, FloatArray]]:
+    """Separate a GeoJSON FeatureCollection into the domain, its regions and its curves.
+
+    A feature whose ``properties`` has a ``"region"`` entry is a region named by it; a
+    LineString feature is a curve (named by its ``"name"`` or ``"curve"`` property, else
+    ``"curve k"``; a MultiLineString gives one curve per line); the other features make the
+    domain.  Anything that is not a FeatureCollection is returned unchanged with no regions.
+
+    Returns
+    -------
+    domain : GeoJSON mapping or None
+        A FeatureCollection of the domain's features, or None when there are none.
+    regions : dict name -> Domain
+    curves : dict name -> (k, 2) array
+
+    Examples
+    --------
+    >>> fc = {"type": "FeatureCollection", "features": [
+    ...     {"type": "Feature", "properties": {},
+    ...      "geometry": {"type": "Polygon", "coordinates": [[[0, 0], [1, 0], [1, 1], [0, 0]]]}},
+    ...     {"type": "Feature", "properties": {"name": "crack"},
+    ...      "geometry": {"type": "LineString", "coordinates": [[0.5, 0.1], [0.8, 0.4]]}}]}
+    >>> rest, regions, curves = split_geojson(fc)
+    >>> len(rest["features"]), list(regions), list(curves)
+    (1, [], ['crack'])
+    """
+    if not (isinstance(obj, Mapping) and obj.get("type") == "FeatureCollection"):
+        return obj, {}, {}
+    features = obj.get("features")
+    if not isinstance(features, list):
+        raise GeometryError("a FeatureCollection needs a list of features")
+    rest: list[object] = []
+    regions: dict[str, Domain] = {}
+    curves: dict[str, FloatArray] = {}
+    for k, f in enumerate(features, start=1):
+        if not isinstance(f, Mapping):
+            raise GeometryError(f"feature {k} is not a GeoJSON object")
+        props = f.get("properties") or {}
+        geom = f.get("geometry") or {}
+        kind = geom.get("type") if isinstance(geom, Mapping) else None
+        if kind in ("LineString", "MultiLineString"):
+            base = str(props.get("name") or props.get("curve") or f"curve {len(curves) + 1}")
+            lines = [geom.get("coordinates")] if kind == "LineString" else list(geom.get("coordinates") or [])
+            for j, line in enumerate(lines, start=1):
+                name = base if len(lines) == 1 else f"{base} {j}"
+                curves[_fresh(name, curves)] = np.asarray(line, dtype=float)
+        elif isinstance(props, Mapping) and props.get("region") is not None:
+            name = _fresh(str(props["region"]), regions)
+            try:
+                regions[name] = as_domain(dict(geom))
+            except (TypeError, ValueError) as exc:
+                raise RegionError(f"region {name!r}: {exc}") from None
+        else:
+            rest.append(f)
+    domain = {"type": "FeatureCollection", "features": rest} if rest else None
+    return domain, regions, curves
+
+
+def _fresh(name: str, taken: Mapping[str, object]) -> str:
+    """``name``, or ``name 2``, ``name 3``, ... if taken."""
+    if name not in taken:
+        return name
+    k = 2
+    while f"{name} {k}" in taken:
+        k += 1
+    return f"{name} {k}"
+
+__all__ = ["Constraints", "CurveError", "Piece", "RegionError", "build_constraints", "split_geojson"]
