@@ -509,3 +509,35 @@ def test_renumber_rows_keeps_the_triangulation() -> None:
     live.flip_to_delaunay()
     assert_live(live)
     assert v in live.triangles
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_flips_from_the_moved_vertices_rows_give_the_delaunay_mesh(seed: int) -> None:
+    """Only some vertices move: flipping from their triangles alone gives the same mesh as a
+    new Delaunay triangulation (generic points: it is unique)."""
+    from injmesh.kernels.delaunay import flip_rows_to_delaunay
+    from injmesh.kernels.mesh import neighbours
+    from injmesh.triangulation import delaunay as tri_delaunay
+
+    rng = np.random.default_rng(seed)
+    # A jittered lattice (well-shaped triangles: moves of a tenth of the spacing need flips
+    # but invert nothing).
+    g = np.stack(np.meshgrid(np.arange(20.0), np.arange(20.0)), axis=-1).reshape(-1, 2)
+    p = (g + rng.uniform(-0.1, 0.1, g.shape)) / 20
+    t32 = tri_delaunay(p).astype(np.int32)
+    moved = np.zeros(len(p), dtype=bool)
+    # Away from the hull, where the lattice's nearly collinear rows make flat triangles.
+    inner = np.flatnonzero(((g >= 2) & (g <= 17)).all(axis=1))
+    moved[rng.choice(inner, 40, replace=False)] = True
+    q = p.copy()
+    q[moved] += rng.uniform(-0.005, 0.005, size=(moved.sum(), 2))
+    nbr = neighbours(t32, len(p)).astype(np.int32)
+    con = np.zeros(t32.shape, dtype=np.uint8)
+    vt = np.full(len(p), -1, dtype=np.int32)
+    vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
+    rows = np.flatnonzero(moved[t32].any(axis=1)).astype(np.int32)
+    res = flip_rows_to_delaunay(q, t32, nbr, con, vt, rows)
+    assert res > 0
+    expected = tri_delaunay(q)
+    as_set = lambda t: {tuple(np.roll(r, -int(np.argmin(r)))) for r in t.tolist()}  # noqa: E731
+    assert as_set(t32) == as_set(expected)

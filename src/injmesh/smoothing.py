@@ -276,6 +276,8 @@ class _Relaxation:
             free = free[active[n_fixed:]]
             moving_slide = slide[active[slide[:, 0]]]
         self._free = free.astype(np.intp)
+        #: The nodes that may move (None: all of them); the others never leave their place.
+        self._active = active
         self._sl = moving_slide
         self._moving = np.concatenate([self._free, moving_slide[:, 0]]).astype(np.intp)
         self._total = np.zeros((n, 2))
@@ -333,7 +335,14 @@ class _Relaxation:
         # Nodes moved a little since the last triangulation: Lawson flips (exact predicates,
         # on the triangles kept, so the mesh keeps its boundary edges) restore Delaunay far
         # more cheaply than a new triangulation; an inverted triangle sends us back to one.
-        res = self._k_flip(self.p, self._t32, self._nbr, self._con, self._vt)
+        if self._active is None:
+            res = self._k_flip(self.p, self._t32, self._nbr, self._con, self._vt)
+        else:
+            # Only the repair's active nodes moved: the flips start from their triangles.
+            from .kernels.delaunay import flip_rows_to_delaunay
+
+            rows = np.flatnonzero(self._active[self._t32].any(axis=1)).astype(np.int32)
+            res = int(flip_rows_to_delaunay(self.p, self._t32, self._nbr, self._con, self._vt, rows))
         if res < 0:
             self._set_triangles(triangulate(self.domain, self.p, self.walls))
         else:

@@ -839,6 +839,38 @@ def flip_to_delaunay(points, tri, nbr, constrained, vt):  # type: ignore[no-unty
 
 
 @njit(cache=True)
+def flip_rows_to_delaunay(points, tri, nbr, constrained, vt, rows):  # type: ignore[no-untyped-def]
+    """:func:`flip_to_delaunay` started from the edges of ``rows`` only.
+
+    For use after only some vertices moved, the rest of the mesh being Delaunay: every edge
+    whose empty-circle test involves a moved vertex is an edge of a triangle incident to it, so
+    ``rows`` must hold every triangle incident to a moved vertex.  Flips spread from there as
+    far as they need to (each flip re-checks its four outer edges).  Same return codes.
+    """
+    for a in range(rows.shape[0]):
+        t = rows[a]
+        if tri[t, 0] == DEAD or _is_ghost(tri, t):
+            continue
+        if _orient(points, tri[t, 0], tri[t, 1], tri[t, 2]) <= 0.0:
+            return -(10 + t)
+    stack = np.empty(256, dtype=np.int32)
+    cap = 50 * rows.shape[0] + 1000
+    flips = 0
+    for a in range(rows.shape[0]):
+        t = rows[a]
+        if tri[t, 0] == DEAD:
+            continue
+        for k in range(3):
+            if nbr[t, k] >= 0 and _edge_illegal(points, tri, nbr, constrained, t, k):
+                stack[0] = 3 * t + k
+                stack, f = _legalize(points, tri, nbr, constrained, vt, stack, 1, cap - flips)
+                if f < 0:
+                    return ERR_LOOP
+                flips += f
+    return flips
+
+
+@njit(cache=True)
 def flip_edge(points, tri, nbr, constrained, vt, i, j):  # type: ignore[no-untyped-def]
     """Flip edge i-j when its quadrilateral is strictly convex and the edge is unconstrained.
 
