@@ -500,3 +500,26 @@ def test_cli_scheduler_and_progress_bar(tmp_path, two_workers, capsys):
     assert len(two_workers.scheduler_info()["workers"]) == 2  # the cluster is left running
     assert main(["batch", str(specs), "--out", str(tmp_path / "o"), "--scheduler", address,
                  "--workers", "1"]) == 2
+
+
+def test_an_interrupt_inside_a_compiled_kernel_stops_the_task(monkeypatch):
+    """Ctrl-C or SIGTERM during a numba kernel reaches Python as ``SystemError: ... returned a
+    result with an exception set``, caused by the KeyboardInterrupt: that is a stop, not a
+    failed spec (seen once in CI as a spec recorded with status "error")."""
+    import injmesh.batch as batch
+    import injmesh.pipeline as pipeline
+
+    def interrupted(*args, **kwargs):
+        try:
+            raise KeyboardInterrupt("SIGTERM")
+        except KeyboardInterrupt as stop:
+            raise SystemError("CPUDispatcher(adjacency) returned a result with an exception set") from stop
+
+    monkeypatch.setattr(pipeline, "generate", interrupted)
+    task = {"name": "disc", "hash": "x", "domain": ["case", "unit_disc"], "size": ["number", 0.2],
+            "nodes": None, "format": "msh"}
+    with pytest.raises(KeyboardInterrupt, match="SIGTERM"):
+        batch.run_task(task)
+    # Other errors are still recorded, not raised.
+    monkeypatch.setattr(pipeline, "generate", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("boom")))
+    assert batch.run_task(task)["status"] == "error"

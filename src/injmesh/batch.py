@@ -862,9 +862,29 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
     except (ValueError, TypeError) as exc:  # the spec's fault: invalid shape, size, ...
         result.update(status="failed", message=_first_line(exc))
     except Exception as exc:  # anything else is worth another try on a rerun
+        stop = _interrupt_in(exc)
+        if stop is not None:
+            raise stop from None
         result.update(status="error", message=f"{type(exc).__name__}: {_first_line(exc)}")
     result["seconds"] = time.perf_counter() - start
     return result
+
+
+def _interrupt_in(exc: BaseException) -> KeyboardInterrupt | None:
+    """The Ctrl-C or SIGTERM hidden in ``exc``'s chain, if any.
+
+    A signal that arrives while a compiled (numba) kernel runs raises its KeyboardInterrupt as
+    the kernel returns, and the dispatcher reports that as ``SystemError: ... returned a result
+    with an exception set``, caused by the interrupt: it is the user's stop, not a spec's error.
+    """
+    seen: set[int] = set()
+    cur: BaseException | None = exc
+    while cur is not None and id(cur) not in seen:
+        if isinstance(cur, KeyboardInterrupt):
+            return cur
+        seen.add(id(cur))
+        cur = cur.__cause__ or cur.__context__
+    return None
 
 
 # --- summary ----------------------------------------------------------------------------------

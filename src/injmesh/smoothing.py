@@ -255,9 +255,12 @@ class _Relaxation:
         active: NDArray[np.bool_] | None = None,
         tri: IntArray | None = None,
         project: NodeProjector | None = None,
+        patch: bool = False,
     ) -> None:
         from .kernels import smooth as kernels
 
+        #: A sub-mesh of the repair (``_patch``): never re-triangulated from scratch.
+        self._patch = patch
         self._k = kernels
         self.domain, self.h, self.p = domain, h, p
         #: Sliding nodes return to their own curve (the domain's boundary by default).
@@ -344,6 +347,8 @@ class _Relaxation:
             rows = np.flatnonzero(self._active[self._t32].any(axis=1)).astype(np.int32)
             res = int(flip_rows_to_delaunay(self.p, self._t32, self._nbr, self._con, self._vt, rows))
         if res < 0:
+            if self._patch:
+                raise _PatchInverted
             self._set_triangles(triangulate(self.domain, self.p, self.walls))
         else:
             self._connect()
@@ -561,13 +566,15 @@ def _repair(
 
     Returns the points, triangles and ``kept`` map of the best round, and the total iterations
     and triangulations spent.  A round that does not raise q_min is still the start of the
-    next: measured on the paper's cases, later rounds often recover.  A round is scored on the
+    next: measured on the paper's cases, later rounds often recover.  Each round relaxes only
+    the patch of triangles around its ``REPAIR_RING``-ring of changed nodes (:func:`_patch`),
+    so its cost follows the size of the change, not of the mesh.  A round is scored on the
     triangulation its relaxation last used (nodes moved less than ``RETRIANGULATE * hbar``
     since); only the winner is made Delaunay again, by flips from that triangulation.
     """
     tri = relax.final()
     q = triangle_quality(relax.p, tri)
-    best: tuple[float, _Relaxation, IntArray] = (float(q.min()), relax, kept)
+    best: tuple[float, FloatArray, IntArray, IntArray] = (float(q.min()), relax.p, tri, kept)
     iterations, triangulations = relax.iterations, relax.retriangulations
     p, cur_kept = relax.p, kept
     for _ in range(REPAIR_ROUNDS):
@@ -594,27 +601,74 @@ def _repair(
                                   alive.sum() + np.arange(len(new))])
         tri = _edited(tri, alive, collapse, split)
         tri = _made_delaunay(relax.domain, p, tri, relax.walls)
-        from .kernels.smooth import adjacency, rings
+        p, tri, steps, extra = _patch(relax, p, tri, touched.astype(np.int64), iterations)
+        iterations += steps
+        triangulations += extra
+        q = triangle_quality(p, tri)
+        if q.min() > best[0]:
+            # Later rounds work on copies: the winner's arrays stay as they are.
+            best = (float(q.min()), p, tri, cur_kept)
+    p, tri = best[1], best[2]
+    if len(tri) and not np.array_equal(p, relax.p):
+        tri = _made_delaunay(relax.domain, p, tri, relax.walls)
+        triangulations += 1
+    return p, tri, best[3], iterations, triangulations
 
-        indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32))
-        active = rings(indptr, adj, touched.astype(np.int64), REPAIR_RING)
-        # Fixed and sliding nodes come first and are never removed, so their indices hold.
+
+class _PatchInverted(Exception):
+    """A patch's flips met an inverted triangle: it cannot be re-triangulated on its own."""
+
+
+def _patch(
+    relax: _Relaxation, p: FloatArray, tri: IntArray, touched: NDArray[np.int64], iterations: int
+) -> tuple[FloatArray, IntArray, int, int]:
+    """Spring steps on the nodes within ``REPAIR_RING`` edges of ``touched``, on a sub-mesh.
+
+    The sub-mesh holds every triangle with a node within ``REPAIR_RING + 1`` edges: the moving
+    nodes, and a ring of nodes that stay.  Every edge whose empty-circle test involves a moving
+    node is then inside it, so its flips (its hull is never flipped) keep the whole mesh
+    Delaunay, and the rest of the mesh is left as it is.  If a flip meets an inverted triangle
+    (a re-triangulation from scratch would have to be global) the round relaxes on the whole
+    mesh instead.  Returns the points, triangles, steps and triangulations.
+    """
+    from .kernels.smooth import adjacency, rings
+
+    indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32))
+    active = rings(indptr, adj, touched, REPAIR_RING)
+    near = rings(indptr, adj, touched, REPAIR_RING + 1)
+    in_patch = near[tri].any(axis=1)
+    nodes = np.unique(tri[in_patch])  # sorted: fixed and sliding nodes (< n_fixed) come first
+    inv = np.full(len(p), -1, dtype=np.intp)
+    inv[nodes] = np.arange(len(nodes))
+    slide = relax.slide[active[relax.slide[:, 0]]]
+    slide = inv[slide]
+    slide = slide[(slide >= 0).all(axis=1)]
+    walls = inv[relax.walls]
+    walls = walls[(walls >= 0).all(axis=1)]
+
+    def project(q: FloatArray, idx: IntArray) -> FloatArray:
+        return relax.project(q, nodes[idx])
+
+    n_fixed = int(np.searchsorted(nodes, relax.n_fixed))
+    try:
+        state = _Relaxation(relax.domain, relax.h, p[nodes], n_fixed, slide, walls, relax.callback,
+                            relax.cap, active=active[nodes], tri=inv[tri[in_patch]], project=project,
+                            patch=True)
+        state.iterations = iterations
+        state.run("spring", REPAIR_STEPS)
+        sub_tri = state.tri
+    except _PatchInverted:
+        # As before patches: the whole mesh, re-triangulated from scratch when a flip meets an
+        # inverted triangle.
         state = _Relaxation(relax.domain, relax.h, p, relax.n_fixed, relax.slide, relax.walls,
                             relax.callback, relax.cap, active=active, tri=tri, project=relax.project)
         state.iterations = iterations
         state.run("spring", REPAIR_STEPS)
-        p, tri = state.p, state.tri
-        iterations = state.iterations
-        triangulations += state.retriangulations
-        q = triangle_quality(p, tri)
-        if q.min() > best[0]:
-            # Later rounds work on a copy of state.p: the winner's nodes stay as they are.
-            best = (float(q.min()), state, cur_kept)
-    winner = best[1]
-    before = winner.retriangulations
-    final = winner.final()
-    triangulations += winner.retriangulations - before
-    return winner.p, final, best[2], iterations, triangulations
+        return state.p, state.tri, state.iterations - iterations, state.retriangulations
+    out = p.copy()
+    out[nodes] = state.p
+    return (out, np.concatenate([tri[~in_patch], nodes[sub_tri]]), state.iterations - iterations,
+            state.retriangulations)
 
 
 def _edited(tri: IntArray, alive: NDArray[np.bool_], collapse: IntArray, split: IntArray) -> IntArray:
