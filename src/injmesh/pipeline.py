@@ -24,9 +24,9 @@ from .injection import inject_nodes
 from .mesh import Mesh, MeshStats
 from .progress import Callback
 from .sizing import GriddedSize, SizeFunction, SizeLike, as_size_function, effective_size
-from .smoothing import Interfaces, Smoothing, smooth
+from .smoothing import Interfaces, Smoothing, SmoothResult, smooth
 from .triangulation import boundary_edges
-from .validate import mesh_defects
+from .validate import Defect, mesh_defects
 
 FloatArray = NDArray[np.float64]
 
@@ -326,38 +326,13 @@ def _injection(
 
     # Step 3: Delaunay triangulation and attractive smoothing (Eq. 3.4).
     # Boundary nodes other than corners slide along the boundary between their neighbours.
-    free_b = np.flatnonzero(~bnd.fixed)
-    prev = np.empty(len(bnd.points), dtype=np.intp)
-    prev[bnd.edges[:, 1]] = bnd.edges[:, 0]
-    sliding = np.stack([free_b, prev[free_b], bnd.edges[free_b, 1]], axis=1)
     result = smooth(
-        domain, _capped(h, domain.diameter), points, n_fixed=len(seeds), sliding=sliding,
+        domain, _capped(h, domain.diameter), points, n_fixed=len(seeds), sliding=_sliding(bnd),
         walls=bnd.edges, smoothing=smoothing, max_iterations=max_iterations, callback=callback,
     )
     seconds["smoothing"] = time.perf_counter() - t
-    # The mesh's boundary edges are Step 1's segments (some split by recovery), tagged with the
-    # loop each came from; a valid mesh has exactly these as its boundary edges.
-    edges = result.walls
-    tags = bnd.node_loop[bnd.edges[result.wall_origin, 0]]
-    defects = mesh_defects(result.points, result.triangles, walls=edges, sdf=domain.sdf,
-                           diameter=domain.diameter)
-    if any(d.kind == "lost boundary segment" for d in defects):
-        # Report the mesh's actual boundary rather than segments it does not have.
-        edges = boundary_edges(result.triangles)
-        tags = _nearest_tags(result.points, edges, result.walls, tags)
-
-    stats = MeshStats(
-        method="injection",
-        iterations=result.iterations,
-        converged=result.converged,
-        retriangulations=result.retriangulations,
-        boundary_nodes=len(bnd.points),
-        initial_nodes=len(points),
-        seconds=seconds,
-        valid=not defects,
-        defects=tuple(defects),
-        unsettled=result.unsettled,
-    )
+    edges, tags, defects = _checked_boundary(domain, bnd, result)
+    stats = _stats(result, len(bnd.points), len(points), seconds, defects)
     return Mesh(
         points=result.points,
         triangles=result.triangles,
@@ -365,6 +340,49 @@ def _injection(
         boundary_tags=tags,
         size=h,
         stats=stats,
+    )
+
+
+def _sliding(bnd: BoundaryMesh) -> NDArray[np.intp]:
+    """Rows ``(node, previous, next)`` of the boundary nodes that slide (all but the fixed)."""
+    free_b = np.flatnonzero(~bnd.fixed)
+    prev = np.empty(len(bnd.points), dtype=np.intp)
+    prev[bnd.edges[:, 1]] = bnd.edges[:, 0]
+    return np.stack([free_b, prev[free_b], bnd.edges[free_b, 1]], axis=1)
+
+
+def _checked_boundary(
+    domain: Domain, bnd: BoundaryMesh, result: SmoothResult
+) -> tuple[NDArray[np.intp], NDArray[np.intp], list[Defect]]:
+    """The mesh's boundary edges, their loop tags and the mesh's defects.
+
+    The boundary edges are Step 1's segments (some split by recovery), tagged with the loop
+    each came from; a valid mesh has exactly these as its boundary edges.  When one is lost the
+    mesh's actual boundary is reported instead of segments it does not have.
+    """
+    edges = result.walls
+    tags = bnd.node_loop[bnd.edges[result.wall_origin, 0]]
+    defects = mesh_defects(result.points, result.triangles, walls=edges, sdf=domain.sdf,
+                           diameter=domain.diameter)
+    if any(d.kind == "lost boundary segment" for d in defects):
+        edges = boundary_edges(result.triangles)
+        tags = _nearest_tags(result.points, edges, result.walls, tags)
+    return edges, tags, list(defects)
+
+
+def _stats(result: SmoothResult, boundary_nodes: int, initial_nodes: int, seconds: dict[str, float],
+           defects: list[Defect]) -> MeshStats:
+    return MeshStats(
+        method="injection",
+        iterations=result.iterations,
+        converged=result.converged,
+        retriangulations=result.retriangulations,
+        boundary_nodes=boundary_nodes,
+        initial_nodes=initial_nodes,
+        seconds=seconds,
+        valid=not defects,
+        defects=tuple(defects),
+        unsettled=result.unsettled,
     )
 
 
@@ -702,10 +720,7 @@ def _injection_with_curves(
     t = time.perf_counter()
 
     # Step 3: boundary and curve nodes other than fixed ones slide between their neighbours.
-    free_b = np.flatnonzero(~bnd.fixed)
-    prev = np.empty(nb, dtype=np.intp)
-    prev[bnd.edges[:, 1]] = bnd.edges[:, 0]
-    rows = [np.stack([free_b, prev[free_b], bnd.edges[free_b, 1]], axis=1)]
+    rows = [_sliding(bnd)]
     node_group = np.zeros(len(seeds), dtype=np.intp)
     for chain, closed in cm.chains:
         g = ids[chain]
@@ -728,12 +743,7 @@ def _injection_with_curves(
         smoothing=smoothing, max_iterations=max_iterations, callback=callback, interfaces=itf,
     )
     seconds["smoothing"] = time.perf_counter() - t
-    edges = result.walls
-    tags = bnd.node_loop[bnd.edges[result.wall_origin, 0]]
-    defects = mesh_defects(result.points, result.triangles, walls=edges, sdf=domain.sdf, diameter=diam)
-    if any(d.kind == "lost boundary segment" for d in defects):
-        edges = boundary_edges(result.triangles)
-        tags = _nearest_tags(result.points, edges, result.walls, tags)
+    edges, tags, defects = _checked_boundary(domain, bnd, result)
     lost = _lost_interfaces(result.triangles, result.interfaces)
     if lost.any():
         from .validate import _defect
@@ -747,18 +757,7 @@ def _injection_with_curves(
     tri_tags = _region_tags(result.points, result.triangles, iseg, cons)
     curve_tags, curve_names = _curve_tags(result.triangles, iseg, igroup, tri_tags, cons)
 
-    stats = MeshStats(
-        method="injection",
-        iterations=result.iterations,
-        converged=result.converged,
-        retriangulations=result.retriangulations,
-        boundary_nodes=nb,
-        initial_nodes=len(points),
-        seconds=seconds,
-        valid=not defects,
-        defects=tuple(defects),
-        unsettled=result.unsettled,
-    )
+    stats = _stats(result, nb, len(points), seconds, defects)
     return Mesh(
         points=result.points,
         triangles=result.triangles,
