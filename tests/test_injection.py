@@ -110,3 +110,23 @@ def test_injection_reports_layers() -> None:
     assert steps[-1] == events[-1].total > steps[-2]
     nodes = [e.info["nodes"] for e in events]
     assert nodes == sorted(nodes)
+
+
+@pytest.mark.parametrize(("h_min", "grade"), [(0.0015, 40.0), (0.001, 80.0)])
+def test_injection_reaches_where_h_is_smallest(h_min: float, grade: float) -> None:
+    """h smallest far from the boundary: the fronts must reach it, not stop at a layer cap.
+
+    A disc with h growing ``grade``:1 from its centre to its rim.  The layer cap used to come
+    from the boundary's h alone and left a hole at the centre (a point 1.7 h and 5.7 h from
+    the nearest node in these two cases).  No point of the disc may be further than h from a
+    node.
+    """
+    size = lambda p: h_min * (1.0 + (grade - 1.0) * np.hypot(p[:, 0], p[:, 1]))  # noqa: E731
+    h, b, inj = _inject(Circle((0, 0), 1.0), size)
+    nodes = np.concatenate([b.points, inj])
+    rng = np.random.default_rng(0)
+    r, t = np.sqrt(rng.random(20_000)) * 0.99, rng.random(20_000) * 2 * np.pi
+    q = np.stack([r * np.cos(t), r * np.sin(t)], axis=1)
+    gap, _ = cKDTree(nodes).query(q)
+    assert np.max(gap / h(q)) < 1.0
+    _check_spacing(h, b.points, inj)

@@ -27,7 +27,12 @@ rebuilt per layer, so the whole injection is linear in the number of nodes.  The
 measures the exact distance to the boundary segments of Step 1 listed in the nearby cells.
 
 *Stopping condition*: a layer in which no point survives (the front is exhausted), or
-``diameter / (sqrt(3)/2 * h_min) + 10`` layers.
+``2 * diameter / (sqrt(3)/2 * h_min) + 10`` layers, h_min the smallest h met so far (on the
+boundary or at an admitted node).  A front advances by about ``sqrt(3)/2 * h`` per layer, so a
+cap from the boundary's h alone stopped fronts short of the places where h is smaller inside:
+on a disc with h growing 20:1 from its centre to its rim (1e5 nodes) a hole about 15 h_min
+wide was left at the centre, and the smoothing did not converge in 1000 steps (a node in
+the hole, pulled by every neighbour, swung across it at each step).
 
 h is asked only at points inside the domain or on its boundary: a candidate beyond the boundary
 (an apex past the opposite wall, the midpoint of a chord across a notch) takes h at its
@@ -120,26 +125,37 @@ def inject_nodes(
     h_existing = np.concatenate([h_bnd, h(existing[len(boundary.points):])]) if _starts_with(
         existing, boundary.points) else h(existing)
     grid = _Proximity(domain, boundary, existing, h_existing, h_min)
-    max_layers = int(domain.diameter / (HEIGHT * h_min)) + 10
+    max_layers = _layer_cap(domain, h_min)
 
-    for layer in range(1, max_layers + 1):
+    layer = 0
+    while layer < max_layers:
+        layer += 1
         cand = _inject(front, domain, h)
         cand = _respace(cand, domain, h)
         keep = _admissible(domain, h, cand.points, grid)
         if not keep.any():
             break
+        h_min = min(h_min, grid.h_min)
+        max_layers = _layer_cap(domain, h_min)
         front = _survivors(cand, keep)
         placed.append(front.points)
         n_placed += len(front.points)
         if n_placed > max_nodes:
             raise NodeBudgetError(f"node injection passed max_nodes={max_nodes} (layer {layer})")
-        report(callback, "injection", layer, max_layers, nodes=n_placed, front=len(front))
+        # Progress against the layers the smallest h so far would need (the cap is twice that).
+        report(callback, "injection", layer, max(layer + 1, max_layers // 2), nodes=n_placed,
+               front=len(front))
         front = _drop_isolated(front)
         if len(front) == 0:
             break
     # The layer count is not known in advance: close the progress at 100 %.
-    report(callback, "injection", max_layers, max_layers, nodes=n_placed, front=0)
+    report(callback, "injection", layer + 1, layer + 1, nodes=n_placed, front=0)
     return np.concatenate(placed[1:]) if len(placed) > 1 else np.empty((0, 2))
+
+
+def _layer_cap(domain: Domain, h_min: float) -> int:
+    """Most layers: twice the domain's diameter in layer heights of the smallest h met."""
+    return int(2.0 * domain.diameter / (HEIGHT * h_min)) + 10
 
 
 def _starts_with(a: FloatArray, b: FloatArray) -> bool:
@@ -227,6 +243,8 @@ class _Proximity:
         self.pts[: self.n] = existing
         self.hs[: self.n] = h_existing
         self.h_max = float(h_existing.max()) if len(existing) else 0.0
+        #: The smallest h of the nodes admitted so far (bounds the layer count).
+        self.h_min = h_min
         kern.insert(self.pts, 0, self.n, self.head, self.link, self.x0, self.y0, 1.0 / cell,
                     self.nx, self.ny)
         e = boundary.edges
@@ -251,6 +269,7 @@ class _Proximity:
         ))
         if keep.any():
             self.h_max = max(self.h_max, float(hq[keep].max()))
+            self.h_min = min(self.h_min, float(hq[keep].min()))
         return keep
 
 
