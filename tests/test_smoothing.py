@@ -169,3 +169,46 @@ def test_coincident_free_nodes_do_not_crash_smoothing() -> None:
     p = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5], [0.5, 0.5], [0.25, 0.25]], dtype=float)
     r = smooth(square, as_size_function(0.5), p, n_fixed=4)
     assert np.all(np.isfinite(r.points))
+
+
+def test_repair_on_a_sub_mesh_leaves_the_rest_and_keeps_delaunay() -> None:
+    """Repair rounds see only the triangles near bad ones (``_repair``): the triangles far from
+    them come out unchanged, the result is a valid triangulation of the same region, locally
+    Delaunay (exact in-circle test), with q_min no lower than before."""
+    from injmesh.kernels.mesh import neighbours
+    from injmesh.kernels.predicates import incircle_many
+    from injmesh.smoothing import REPAIR_Q, _Relaxation, _repair
+
+    domain = Rectangle((0, 0), (1, 1))
+    h, b, p, sliding = _prepare(domain, 0.02)
+    relax = _Relaxation(domain, h, p, len(b.points), sliding, b.edges, None, 1000)
+    relax.run("spring", 15)  # stop early: some bad triangles are left for the repair
+    tri0 = relax.final().copy()
+    p0 = relax.p.copy()
+    q0 = triangle_quality(p0, tri0)
+    assert 0 < np.count_nonzero(q0 < REPAIR_Q) < len(tri0) // 20
+    out, tri, kept, _, _ = _repair(relax, np.arange(len(p0)))
+    q = triangle_quality(out, tri)
+    assert signed_areas(out, tri).min() > 0
+    assert q.min() >= q0.min()
+    assert signed_areas(out, tri).sum() == pytest.approx(1.0, rel=1e-12)
+    # Far from every bad triangle nothing changed: same triangles on the same points.
+    far = np.ones(len(tri0), dtype=bool)
+    bad_nodes = np.unique(tri0[q0 < REPAIR_Q])
+    dist = np.min(np.hypot(*(p0[:, None, :] - p0[bad_nodes][None, :, :]).transpose(2, 0, 1)), axis=1)
+    far = (dist[tri0] > 20 * 0.02).all(axis=1)
+    assert far.sum() > len(tri0) // 2
+    moved = kept >= 0
+    back = np.full(len(p0), -1)
+    back[kept[moved]] = np.flatnonzero(moved)
+    same = {tuple(sorted(t)) for t in back[tri0[far]].tolist()}
+    assert same <= {tuple(sorted(t)) for t in tri.tolist()}
+    assert np.array_equal(out[back[np.unique(tri0[far])]], p0[np.unique(tri0[far])])
+    # Locally Delaunay everywhere.
+    t32 = np.ascontiguousarray(tri, dtype=np.int64)
+    nbr = neighbours(t32, len(out))
+    t, k = np.nonzero(nbr >= 0)
+    u = nbr[t, k]
+    opp = np.array([tri[u[i]][~np.isin(tri[u[i]], tri[t[i]])][0] for i in range(len(t))])
+    ic = incircle_many(out[tri[t, 0]], out[tri[t, 1]], out[tri[t, 2]], out[opp])
+    assert ic.max() <= 0

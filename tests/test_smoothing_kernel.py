@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from injmesh import Rectangle
 from injmesh.kernels.smooth import adjacency, advance, bar_forces, mean_bar_size, rings
@@ -218,3 +220,20 @@ def test_slide_kernels_follow_the_barriers(seed: int) -> None:
     untouched = np.setdiff1d(np.arange(k), slide[:, 0])
     assert np.array_equal(p[untouched], before[untouched])
     assert 0 < kept  # the random forces leave some steps inside the barriers
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(4, 200))
+def test_edges_present_agrees_with_the_edge_list(seed: int, n: int) -> None:
+    """The boundary-recovery test (is each segment a mesh edge?) against the set of edges."""
+    from injmesh.kernels.mesh import edges_present
+
+    rng = np.random.default_rng(seed)
+    p = rng.random((n, 2))
+    tri = delaunay(p).astype(np.int64)
+    edges = {tuple(e) for e in unique_edges(tri).tolist()}
+    pairs = rng.integers(0, n, (3 * n, 2))
+    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+    pairs = np.concatenate([pairs, np.array(sorted(edges))[: n // 2, ::-1]])
+    found = edges_present(tri, np.ascontiguousarray(pairs, dtype=np.int64), n)
+    assert found.tolist() == [(min(a, b), max(a, b)) in edges for a, b in pairs.tolist()]

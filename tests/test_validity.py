@@ -82,6 +82,26 @@ def _broken(monkeypatch):
     monkeypatch.setattr(pipeline, "smooth", smooth)
 
 
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(2, 300), eps=st.sampled_from([1e-9, 0.05, 0.3]),
+       decimals=st.integers(0, 2))
+def test_duplicate_nodes_are_the_pairs_a_kd_tree_finds(seed, n, eps, decimals):
+    """The compiled sweep finds exactly the pairs within eps, also on lattices whose columns
+    share one x (rounded coordinates) or differ from it by rounding noise."""
+    from scipy.spatial import cKDTree
+
+    from injmesh.validate import _duplicates
+
+    rng = np.random.default_rng(seed)
+    q = np.round(rng.random((n, 2)) * rng.integers(1, 20), decimals)
+    q[rng.integers(0, n, 5)] += rng.normal(0.0, eps / 2, (5, 2))
+    q[rng.integers(0, n, 5), 0] += 1e-16 * rng.integers(-2, 3, 5)
+    near = cKDTree(q).query_pairs(eps, output_type="ndarray")
+    expected = {tuple(r) for r in np.sort(near, axis=1).tolist()}
+    found = {tuple(r) for r in np.sort(_duplicates(q, eps), axis=1).tolist()}
+    assert found == expected
+
+
 def test_strict_raises_naming_defects(monkeypatch):
     _broken(monkeypatch)
     with pytest.raises(MeshError, match=r"boundary edge not on the domain boundary at \(") as info:

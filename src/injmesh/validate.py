@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from . import _tolerances as tol
 from .quality import signed_areas, triangle_quality
@@ -113,33 +112,32 @@ def mesh_defects(
     used[t.ravel()] = True
     if not used.all():
         out.append(_defect("unused node", p[~used]))
-    pairs = cKDTree(p).query_pairs(DUPLICATE * diameter, output_type="ndarray")
+    pairs = _duplicates(p, DUPLICATE * diameter)
     if len(pairs):
         out.append(_defect("duplicate node", p[pairs[:, 0]]))
 
-    centroids = p[t].mean(axis=1)
     area = signed_areas(p, t)
     if np.any(area <= 0):
-        out.append(_defect("inverted or flat triangle", centroids[area <= 0]))
+        out.append(_defect("inverted or flat triangle", p[t[area <= 0]].mean(axis=1)))
     q = triangle_quality(p, t)
     degenerate = (area > 0) & (q < DEGENERATE_Q)
     if degenerate.any():
-        out.append(_defect(f"degenerate triangle (q < {DEGENERATE_Q:g})", centroids[degenerate]))
+        out.append(_defect(f"degenerate triangle (q < {DEGENERATE_Q:g})", p[t[degenerate]].mean(axis=1)))
 
-    half = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    from .kernels.mesh import edge_census
+
     n = len(p)
-    directed = half[:, 0].astype(np.int64) * n + half[:, 1]
-    uniq, count = np.unique(directed, return_counts=True)
-    if np.any(count > 1):
-        d = uniq[count > 1]
-        out.append(_defect("overlapping triangles", 0.5 * (p[d // n] + p[d % n])))
-    undirected = np.minimum(half[:, 0], half[:, 1]).astype(np.int64) * n + np.maximum(half[:, 0], half[:, 1])
-    ukey, uinv, ucount = np.unique(undirected, return_inverse=True, return_counts=True)
-    if np.any(ucount > 2):
-        k = ukey[ucount > 2]
-        out.append(_defect("edge in more than two triangles", 0.5 * (p[k // n] + p[k % n])))
-
-    boundary = half[ucount[uinv.reshape(-1)] == 1]
+    edges, forward, backward = edge_census(np.ascontiguousarray(t, dtype=np.int64), n)
+    both = forward + backward
+    if np.any((forward > 1) | (backward > 1)):
+        e = edges[(forward > 1) | (backward > 1)]
+        out.append(_defect("overlapping triangles", 0.5 * (p[e[:, 0]] + p[e[:, 1]])))
+    if np.any(both > 2):
+        e = edges[both > 2]
+        out.append(_defect("edge in more than two triangles", 0.5 * (p[e[:, 0]] + p[e[:, 1]])))
+    # Edges in one triangle, oriented as there.
+    once = both == 1
+    boundary = np.where((forward[once] == 1)[:, None], edges[once], edges[once][:, ::-1])
     if walls is not None:
         w = np.asarray(walls, dtype=np.intp).reshape(-1, 2)
         # A segment with a dropped node (index -1) is lost; it is located at its other node.
@@ -159,3 +157,18 @@ def mesh_defects(
         if off.any():
             out.append(_defect("boundary node off the boundary", p[nodes[off]]))
     return out
+
+
+def _duplicates(p: FloatArray, eps: float) -> NDArray[np.int64]:
+    """Pairs of nodes within ``eps`` of each other (compiled, cells of eps in x, then y)."""
+    from .kernels.mesh import close_pairs
+
+    if len(p) < 2 or not eps > 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    x = (p[:, 0] - p[:, 0].min()) / eps
+    # Cells of eps along x (capped: a far point just shares the last cell with its neighbours).
+    cell = np.floor(np.minimum(x, 2.0**62)).astype(np.int64)
+    order = np.lexsort((p[:, 1], cell)).astype(np.int64)
+    pairs: NDArray[np.int64] = close_pairs(np.ascontiguousarray(p), cell, order, eps)
+    d = np.hypot(*(p[pairs[:, 0]] - p[pairs[:, 1]]).T)
+    return pairs[d <= eps]

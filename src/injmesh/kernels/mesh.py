@@ -112,6 +112,122 @@ def edge_index(tri, n):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
+def edge_census(tri, n):  # type: ignore[no-untyped-def]
+    """Distinct edges ``(k, 2)`` (i < j, sorted) and how many triangles run along each edge
+    from i to j (``forward``) and from j to i (``backward``).
+
+    In a valid mesh every edge has ``forward + backward`` 1 (boundary) or 2 (one each way);
+    a count above 1 in one direction is two triangles overlapping on that side.
+    """
+    edges, edge_of = edge_index(tri, n)
+    k = edges.shape[0]
+    forward = np.zeros(k, dtype=np.int64)
+    backward = np.zeros(k, dtype=np.int64)
+    for t in range(tri.shape[0]):
+        for c in range(3):
+            e = edge_of[3 * t + c]
+            if tri[t, (c + 1) % 3] == edges[e, 0]:
+                forward[e] += 1
+            else:
+                backward[e] += 1
+    return edges, forward, backward
+
+
+@njit(cache=True)
+def close_pairs(pts, cell, order, eps):  # type: ignore[no-untyped-def]
+    """Pairs of points closer than ``eps`` in both coordinates.
+
+    ``cell[i]`` is ``floor(x_i / eps)`` (relative to any origin) and ``order`` sorts the points
+    by (cell, y).  A point's partners lie in its own cell or the next one, within eps in y:
+    a forward scan in its own cell and a binary search in the next, so the cost is about
+    ``n log n`` even on lattices whose columns share (nearly) one x.
+    """
+    n = order.shape[0]
+    out_a = np.empty(16, dtype=np.int64)
+    out_b = np.empty(16, dtype=np.int64)
+    count = 0
+    # end[r]: one past the last rank of rank r's cell.
+    end = np.empty(n, dtype=np.int64)
+    last = n
+    for r in range(n - 1, -1, -1):
+        if r + 1 < n and cell[order[r + 1]] != cell[order[r]]:
+            last = r + 1
+        end[r] = last
+    for r in range(n):
+        i = order[r]
+        xi = pts[i, 0]
+        yi = pts[i, 1]
+        c = cell[i]
+        lo = r + 1
+        hi = end[r]
+        for step in range(2):
+            s = lo
+            while s < hi:
+                j = order[s]
+                if pts[j, 1] - yi > eps:
+                    break
+                if abs(pts[j, 0] - xi) <= eps and abs(pts[j, 1] - yi) <= eps:
+                    if count == out_a.shape[0]:
+                        out_a = np.concatenate((out_a, np.empty(count, dtype=np.int64)))
+                        out_b = np.concatenate((out_b, np.empty(count, dtype=np.int64)))
+                    out_a[count] = i
+                    out_b[count] = j
+                    count += 1
+                s += 1
+            if step == 1 or end[r] >= n or cell[order[end[r]]] != c + 1:
+                break
+            # The next cell: its points from y_i - eps on (binary search over its y order).
+            lo = end[r]
+            hi = end[lo]
+            a, b = lo, hi
+            while a < b:
+                mid = (a + b) // 2
+                if pts[order[mid], 1] < yi - eps:
+                    a = mid + 1
+                else:
+                    b = mid
+            lo = a
+    pairs = np.empty((count, 2), dtype=np.int64)
+    pairs[:, 0] = out_a[:count]
+    pairs[:, 1] = out_b[:count]
+    return pairs
+
+
+@njit(cache=True)
+def edges_present(tri, pairs, n):  # type: ignore[no-untyped-def]
+    """Whether each row (i, j) of ``pairs`` is a side of some triangle of ``tri``.
+
+    The pairs are filed under their smaller node (few rows: boundary segments), then every
+    triangle side whose smaller node has a row is looked up there: one pass over the
+    triangles, no adjacency of the whole mesh.
+    """
+    k = pairs.shape[0]
+    start = np.zeros(n + 1, dtype=np.int64)
+    for r in range(k):
+        start[min(pairs[r, 0], pairs[r, 1]) + 1] += 1
+    for i in range(n):
+        start[i + 1] += start[i]
+    fill = start[:-1].copy()
+    row = np.empty(k, dtype=np.int64)
+    for r in range(k):
+        lo = min(pairs[r, 0], pairs[r, 1])
+        row[fill[lo]] = r
+        fill[lo] += 1
+    found = np.zeros(k, dtype=np.bool_)
+    for t in range(tri.shape[0]):
+        for c in range(3):
+            u = tri[t, c]
+            v = tri[t, (c + 1) % 3]
+            lo = min(u, v)
+            hi = max(u, v)
+            for s in range(start[lo], start[lo + 1]):
+                r = row[s]
+                if max(pairs[r, 0], pairs[r, 1]) == hi:
+                    found[r] = True
+    return found
+
+
+@njit(cache=True)
 def unique_edges(tri, n):  # type: ignore[no-untyped-def]
     """Distinct edges ``(k, 2)`` with i < j, sorted by (i, j)."""
     return edge_index(tri, n)[0]

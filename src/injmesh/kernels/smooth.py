@@ -295,22 +295,37 @@ def rings(indptr, adj, seeds, k):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def has_edges(indptr, adj, pairs):  # type: ignore[no-untyped-def]
-    """Whether each row (i, j) of ``pairs`` is an edge of the CSR adjacency (binary search)."""
-    n = indptr.shape[0] - 1
-    out = np.zeros(pairs.shape[0], dtype=np.bool_)
-    for r in range(pairs.shape[0]):
-        i = pairs[r, 0]
-        j = pairs[r, 1]
-        if i < 0 or j < 0 or i >= n or j >= n:
-            continue
-        lo = indptr[i]
-        hi = indptr[i + 1]
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if adj[mid] < j:
-                lo = mid + 1
-            else:
-                hi = mid
-        out[r] = lo < indptr[i + 1] and adj[lo] == j
+def corners_by_node(tri, n):  # type: ignore[no-untyped-def]
+    """The corners (flat indices ``3 t + k``) of each node's triangles, in CSR form.
+
+    Returns ``start (n + 1,)`` and ``corner``: node i's corners are
+    ``corner[start[i]:start[i + 1]]``, increasing (a stable counting sort of ``tri.ravel()``).
+    """
+    m = tri.shape[0]
+    start = np.zeros(n + 1, dtype=np.int64)
+    for t in range(m):
+        for k in range(3):
+            start[tri[t, k] + 1] += 1
+    for i in range(n):
+        start[i + 1] += start[i]
+    fill = start[:-1].copy()
+    corner = np.empty(3 * m, dtype=np.int64)
+    for t in range(m):
+        for k in range(3):
+            v = tri[t, k]
+            corner[fill[v]] = 3 * t + k
+            fill[v] += 1
+    return start, corner
+
+
+@njit(cache=True)
+def star_min(start, corner, q):  # type: ignore[no-untyped-def]
+    """Smallest ``q`` over each node's triangles (inf for a node in none)."""
+    n = start.shape[0] - 1
+    out = np.full(n, np.inf)
+    for i in range(n):
+        for s in range(start[i], start[i + 1]):
+            v = q[corner[s] // 3]
+            if v < out[i]:
+                out[i] = v
     return out
