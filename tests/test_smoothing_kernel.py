@@ -237,3 +237,31 @@ def test_edges_present_agrees_with_the_edge_list(seed: int, n: int) -> None:
     pairs = np.concatenate([pairs, np.array(sorted(edges))[: n // 2, ::-1]])
     found = edges_present(tri, np.ascontiguousarray(pairs, dtype=np.int64), n)
     assert found.tolist() == [(min(a, b), max(a, b)) in edges for a, b in pairs.tolist()]
+
+
+def _lower_wins_reference(keep, lo, hi):
+    """Sequential greedy in index order, written out plainly."""
+    kept = np.zeros(len(keep), dtype=bool)
+    for v in range(len(keep)):
+        if keep[v]:
+            kept[v] = not any(kept[a] for a, b in zip(lo, hi, strict=True) if b == v)
+    return kept
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 60), k=st.integers(0, 200))
+def test_lower_wins_is_the_greedy_independent_set(seed: int, n: int, k: int) -> None:
+    from injmesh._arrays import lower_wins
+
+    rng = np.random.default_rng(seed)
+    keep = rng.random(n) < 0.7
+    a, b = rng.integers(0, n, (2, k))
+    ok = a != b
+    lo, hi = np.minimum(a, b)[ok], np.maximum(a, b)[ok]
+    got = lower_wins(keep, lo, hi)
+    assert got.tolist() == _lower_wins_reference(keep, lo, hi).tolist()
+    # An independent set of candidates, and maximal: every dropped candidate has a kept partner.
+    assert not np.any(got[lo] & got[hi])
+    assert np.all(got <= keep)
+    for v in np.flatnonzero(keep & ~got):
+        assert np.any(got[lo[hi == v]]) or np.any(got[hi[lo == v]])

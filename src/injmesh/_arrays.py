@@ -12,8 +12,8 @@ IntArray = NDArray[np.intp]
 def lower_wins(keep: BoolArray, lo: IntArray, hi: IntArray) -> BoolArray:
     """Greedy independent set in index order over conflict pairs ``(lo, hi)``, ``lo < hi``.
 
-    A candidate (``keep`` True) survives unless a lower-numbered survivor conflicts with it.
-    Computed in parallel rounds: a candidate is decided once all its lower partners are.
+    A candidate (``keep`` True) survives unless a lower-numbered survivor conflicts with it
+    (compiled: one pass in index order, :func:`injmesh.kernels.smooth.lower_wins`).
 
     Examples
     --------
@@ -21,14 +21,8 @@ def lower_wins(keep: BoolArray, lo: IntArray, hi: IntArray) -> BoolArray:
     >>> lower_wins(np.ones(3, bool), np.array([0, 1]), np.array([1, 2])).tolist()
     [True, False, True]
     """
-    kept = np.zeros(len(keep), dtype=bool)
-    undecided = keep.copy()
-    while undecided.any():
-        waiting = np.zeros(len(keep), dtype=bool)
-        waiting[hi[undecided[lo]]] = True
-        ready = undecided & ~waiting
-        beaten = np.zeros(len(keep), dtype=bool)
-        beaten[hi[kept[lo]]] = True
-        kept |= ready & ~beaten
-        undecided &= ~ready
-    return kept
+    from .kernels.smooth import lower_wins as kernel
+
+    out: BoolArray = kernel(np.ascontiguousarray(keep, dtype=np.bool_), np.asarray(lo, dtype=np.int64),
+                            np.asarray(hi, dtype=np.int64))
+    return out

@@ -133,6 +133,9 @@ DPTOL = 3e-3
 #: binds (the output is identical without it); it bounds how far a node can go between two
 #: connectivity updates (see DEEP).
 STEP_CAP = 0.5
+#: A re-triangulation checks the triangles of the nodes that drifted more than this fraction
+#: of their hbar since their own last update (see ``_Relaxation.retriangulate``).
+LOCAL_DRIFT = RETRIANGULATE / 4
 #: Free nodes deeper inside than DEEP * hbar (from d at the last connectivity update) skip
 #: the inside test of each step: they drift less than (RETRIANGULATE + STEP_CAP) * hbar before
 #: the next update, and DEEP leaves a factor 2 for signed distances that are not exact.
@@ -293,6 +296,9 @@ class _Relaxation:
         self._csr: tuple[NDArray[np.int64], NDArray[np.int32], NDArray[np.int64], FloatArray]
         self._bars: NDArray[np.int64]
         self._near = np.empty(len(self._free), dtype=np.intp)
+        self._is_free = np.zeros(n, dtype=bool)
+        self._is_free[self._free] = True
+        self._seen = np.zeros(0, dtype=np.bool_)
         self._set_triangles(triangulate(domain, p, walls) if tri is None else tri)
 
     def _projector(self, nodes: IntArray) -> Callable[[FloatArray], FloatArray]:
@@ -355,25 +361,68 @@ class _Relaxation:
         self.anchor = p.copy()
         self.retriangulations += 1
 
-    def retriangulate(self) -> None:
-        # Nodes moved a little since the last triangulation: Lawson flips (exact predicates,
-        # on the triangles kept, so the mesh keeps its boundary edges) restore Delaunay far
-        # more cheaply than a new triangulation; an inverted triangle sends us back to one.
-        if self._active is None:
+    def retriangulate(self, everywhere: bool = False) -> None:
+        """Make the triangulation Delaunay again after the nodes moved (see the module doc).
+
+        Lawson flips (exact predicates, on the triangles kept, so the mesh keeps its boundary
+        edges) restore Delaunay far more cheaply than a new triangulation; an inverted triangle
+        sends us back to one.  Unless ``everywhere``, the flips start from the triangles of
+        the nodes that drifted more than ``RETRIANGULATE / 4`` of their hbar since their own
+        last update (``LOCAL_DRIFT``): the step that triggers an update is usually a handful
+        of nodes past ``RETRIANGULATE``, and checking every edge of the mesh for them cost
+        more than the steps.  An edge between nodes that drifted less stays as it was (at
+        worst nearly Delaunay) until one of them drifts further; ``final`` flips everywhere.
+        """
+        from .kernels.delaunay import flip_rows_to_delaunay
+
+        moved: IntArray | None = None
+        if self._active is not None:
+            # Only the repair's active nodes moved: the flips start from their triangles.
+            rows = np.flatnonzero(self._active[self._t32].any(axis=1)).astype(np.int32)
+            res = int(flip_rows_to_delaunay(self.p, self._t32, self._nbr, self._con, self._vt, rows))
+        elif everywhere:
             res = self._k_flip(self.p, self._t32, self._nbr, self._con, self._vt)
         else:
-            # Only the repair's active nodes moved: the flips start from their triangles.
-            from .kernels.delaunay import flip_rows_to_delaunay
-
-            rows = np.flatnonzero(self._active[self._t32].any(axis=1)).astype(np.int32)
+            drift = np.hypot(*(self.p - self.anchor).T) / self.hbar
+            moved = np.flatnonzero(drift > LOCAL_DRIFT)
+            mask = np.zeros(len(self.p), dtype=bool)
+            mask[moved] = True
+            rows = np.flatnonzero(mask[self._t32].any(axis=1)).astype(np.int32)
             res = int(flip_rows_to_delaunay(self.p, self._t32, self._nbr, self._con, self._vt, rows))
         if res < 0:
             if self._patch:
                 raise _PatchInverted
             self._set_triangles(triangulate(self.domain, self.p, self.walls))
+        elif res == 0 and moved is not None:
+            # No flip: the node lists stay; only the moved nodes' bars and anchors are renewed.
+            self._refresh(moved)
         else:
-            # No flip (the usual case once the nodes settle): the node lists stay.
+            # No flip keeps the node lists (the usual case once the nodes settle).
             self._connect(rebuild=res > 0)
+
+    def _refresh(self, nodes: IntArray) -> None:
+        """Renew what depends on the positions of ``nodes`` only: the desired lengths of their
+        bars (and so hbar around them), their inside flags and their anchors."""
+        k, p = self._k, self.p
+        indptr, _, eid, ld = self._csr
+        if getattr(self.h, "constant", None) is None and len(nodes):
+            if len(self._seen) != len(ld):
+                self._seen = np.zeros(len(ld), dtype=np.bool_)
+            b = k.row_bars(indptr, eid, nodes.astype(np.int64), self._seen)
+            bars = self._bars[b]
+            ld[b] = self.h(0.5 * (p[bars[:, 0]] + p[bars[:, 1]]))
+            # hbar of the moved nodes and of their neighbours (whose bars these are too).
+            ends = np.zeros(len(p), dtype=bool)
+            ends[bars.ravel()] = True
+            k.mean_bar_size_of(indptr, eid, ld, np.flatnonzero(ends), self.hbar)
+        if len(self._sl):
+            b, bp, bn = self._sl.T
+            self._ld_slide = (self.h(0.5 * (p[b] + p[bp])), self.h(0.5 * (p[b] + p[bn])))
+        free = nodes[self._is_free[nodes]]
+        if len(free):
+            self._deep[free] = self.domain.sdf(p[free]) < -DEEP * self.hbar[free]
+        self.anchor[nodes] = p[nodes]
+        self.retriangulations += 1
 
     @staticmethod
     def _k_flip(p: FloatArray, tri: Int32Array, nbr: Int32Array, con: NDArray[np.uint8],
@@ -427,7 +476,7 @@ class _Relaxation:
 
     def final(self) -> IntArray:
         if not np.array_equal(self.anchor, self.p):
-            self.retriangulate()
+            self.retriangulate(everywhere=True)
         return self.tri
 
 

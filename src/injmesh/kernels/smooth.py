@@ -329,3 +329,74 @@ def star_min(start, corner, q):  # type: ignore[no-untyped-def]
             if v < out[i]:
                 out[i] = v
     return out
+
+
+@njit(cache=True)
+def lower_wins(keep, lo, hi):  # type: ignore[no-untyped-def]
+    """Greedy independent set in index order over conflict pairs ``(lo, hi)``, ``lo < hi``.
+
+    Candidates (``keep``) are taken in increasing index; one survives unless a lower-numbered
+    survivor conflicts with it.  The conflicts are filed under their higher index, so the
+    pass is linear in the candidates and pairs.
+    """
+    n = keep.shape[0]
+    start = np.zeros(n + 1, dtype=np.int64)
+    for k in range(hi.shape[0]):
+        start[hi[k] + 1] += 1
+    for i in range(n):
+        start[i + 1] += start[i]
+    fill = start[:-1].copy()
+    below = np.empty(hi.shape[0], dtype=np.int64)
+    for k in range(hi.shape[0]):
+        below[fill[hi[k]]] = lo[k]
+        fill[hi[k]] += 1
+    kept = np.zeros(n, dtype=np.bool_)
+    for v in range(n):
+        if not keep[v]:
+            continue
+        ok = True
+        for s in range(start[v], start[v + 1]):
+            if kept[below[s]]:
+                ok = False
+                break
+        kept[v] = ok
+    return kept
+
+
+@njit(cache=True)
+def row_bars(indptr, eid, nodes, seen):  # type: ignore[no-untyped-def]
+    """The distinct bars in the CSR rows of ``nodes``, in order of first appearance.
+
+    ``seen`` is a scratch flag per bar, all False on entry and on return.
+    """
+    total = 0
+    for a in range(nodes.shape[0]):
+        v = nodes[a]
+        total += indptr[v + 1] - indptr[v]
+    out = np.empty(total, dtype=np.int64)
+    w = 0
+    for a in range(nodes.shape[0]):
+        v = nodes[a]
+        for e in range(indptr[v], indptr[v + 1]):
+            b = eid[e]
+            if not seen[b]:
+                seen[b] = True
+                out[w] = b
+                w += 1
+    for r in range(w):
+        seen[out[r]] = False
+    return out[:w]
+
+
+@njit(cache=True)
+def mean_bar_size_of(indptr, eid, ld, nodes, out):  # type: ignore[no-untyped-def]
+    """:func:`mean_bar_size` for ``nodes`` only, written to ``out[nodes]`` (rows with bars)."""
+    for a in range(nodes.shape[0]):
+        v = nodes[a]
+        d = indptr[v + 1] - indptr[v]
+        if d == 0:
+            continue
+        s = 0.0
+        for e in range(indptr[v], indptr[v + 1]):
+            s += ld[eid[e]]
+        out[v] = s / d
