@@ -81,7 +81,7 @@ def test_advance_steps_clamps_and_defers_near_nodes() -> None:
     deep[::2] = True
     q = p.copy()
     cand, near = np.empty((len(free), 2)), np.empty(len(free), dtype=np.intp)
-    c, worst, at, drift = advance(q, free, total, hbar, DT, 0.05, deep, p, cand, near)
+    c, worst, at, drift, count = advance(q, free, total, hbar, DT, 0.05, deep, p, cand, near, 0.01)
     step = DT * hbar[:, None] * total
     length = np.hypot(*step.T)
     step *= np.minimum(1.0, 0.05 * hbar / np.maximum(length, 1e-300))[:, None]
@@ -91,6 +91,7 @@ def test_advance_steps_clamps_and_defers_near_nodes() -> None:
     assert np.array_equal(near[:c], free[~deep[free]])
     np.testing.assert_allclose(cand[:c], p[near[:c]] + step[near[:c]], rtol=0, atol=1e-15)
     assert worst <= 0.05 + 1e-12 and drift == pytest.approx(worst)
+    assert count == np.count_nonzero(np.hypot(*(q[moved] - p[moved]).T) / hbar[moved] > 0.01)
     assert at in moved
 
 

@@ -140,6 +140,13 @@ LOCAL_DRIFT = RETRIANGULATE / 4
 #: the inside test of each step: they drift less than (RETRIANGULATE + STEP_CAP) * hbar before
 #: the next update, and DEEP leaves a factor 2 for signed distances that are not exact.
 DEEP = 2.0 * (RETRIANGULATE + STEP_CAP)
+#: The spring's slow tail is relaxed locally (``_settle``) once at most this fraction of the
+#: nodes (and at least TAIL_MIN) moves more than DPTOL in a step: the nodes within TAIL_RING
+#: edges of them, at most TAIL_ROUNDS times.
+TAIL_FRACTION = 0.02
+TAIL_MIN = 16
+TAIL_RING = 4
+TAIL_ROUNDS = 4
 #: Default iteration cap (all phases together).
 MAX_ITERATIONS = 1000
 #: Triangles below this quality are repaired; at most REPAIR_ROUNDS rounds.
@@ -276,6 +283,8 @@ class _Relaxation:
         self.callback, self.cap = callback, cap
         self.iterations = 0
         self.retriangulations = 0
+        #: The last run stopped at its slow tail (see ``run``).
+        self.in_tail = False
         #: Where the largest move of the last step was: where a run that stops at its cap is
         #: still moving.
         self.unsettled: tuple[float, float] | None = None
@@ -376,7 +385,7 @@ class _Relaxation:
         from .kernels.delaunay import flip_rows_to_delaunay
 
         moved: IntArray | None = None
-        if self._active is not None:
+        if everywhere and self._active is not None:
             # Only the repair's active nodes moved: the flips start from their triangles.
             rows = np.flatnonzero(self._active[self._t32].any(axis=1)).astype(np.int32)
             res = int(flip_rows_to_delaunay(self.p, self._t32, self._nbr, self._con, self._vt, rows))
@@ -431,18 +440,25 @@ class _Relaxation:
 
         return int(flip_kernel(p, tri, nbr, con, vt))
 
-    def run(self, force: Literal["attractive", "spring"], steps: int) -> bool:
-        """Up to ``steps`` Euler steps; True when the convergence test was met."""
+    def run(self, force: Literal["attractive", "spring"], steps: int, tail: int = 0) -> bool:
+        """Up to ``steps`` Euler steps; True when the convergence test was met.
+
+        With ``tail > 0`` the run also stops (False, ``in_tail`` set) at the first step in
+        which at most ``tail`` nodes, but some, moved more than ``DPTOL * hbar``: the rest of
+        the mesh is at rest, and the caller relaxes those nodes locally (:func:`_settle`).
+        """
         p, n, k = self.p, len(self.p), self._k
         attraction = ATTRACTION if force == "attractive" else 0.0  # Eq. 3.4: f / lc = -0.2 / ld
+        self.in_tail = False
         for _ in range(steps):
             if self.iterations >= self.cap:
                 return False
             self.iterations += 1
             indptr, adj, eid, ld = self._csr
             k.bar_forces(p, self._moving, indptr, adj, eid, ld, attraction, self._total)
-            c, worst, at, drift = k.advance(p, self._free, self._total, self.hbar, DT, STEP_CAP,
-                                            self._deep, self.anchor, self._cand, self._near)
+            c, worst, at, drift, count = k.advance(p, self._free, self._total, self.hbar, DT, STEP_CAP,
+                                                   self._deep, self.anchor, self._cand, self._near,
+                                                   DPTOL)
             if c:
                 # Nodes near the boundary: a step that would leave the domain is not taken.
                 idx, new = self._near[:c], self._cand[:c]
@@ -451,6 +467,7 @@ class _Relaxation:
                 if len(idx):
                     hb = self.hbar[idx]
                     mv = np.hypot(*(new - p[idx]).T) / hb
+                    count += int(np.count_nonzero(mv > DPTOL))
                     p[idx] = new
                     drift = max(drift, float(np.max(np.hypot(*(new - self.anchor[idx]).T) / hb)))
                     a = int(np.argmax(mv))
@@ -459,6 +476,7 @@ class _Relaxation:
             if len(self._sl):
                 b = self._sl[:, 0]
                 mv = _slide(p, self._sl, self._total, self.hbar, self._ld_slide, self._projector(b))
+                count += int(np.count_nonzero(mv > DPTOL))
                 a = int(np.argmax(mv))
                 if mv[a] > worst:
                     worst, at = float(mv[a]), int(b[a])
@@ -470,6 +488,9 @@ class _Relaxation:
                    force=force)
             if worst < DPTOL:
                 return True
+            if count <= tail:
+                self.in_tail = True
+                return False
             if drift > RETRIANGULATE:
                 self.retriangulate()
         return False
@@ -587,7 +608,14 @@ def smooth(
         converged = relax.run("attractive", cap)
     else:
         relax.run("attractive", ATTRACTIVE_ITERATIONS)
-        converged = relax.run("spring", cap)
+        tail = max(TAIL_MIN, int(TAIL_FRACTION * len(p)))
+        converged = relax.run("spring", cap, tail=tail)
+        for _ in range(TAIL_ROUNDS):
+            if converged or not relax.in_tail:
+                break
+            converged = _settle(relax) or relax.run("spring", cap, tail=tail)
+        if not converged and relax.in_tail:
+            converged = relax.run("spring", cap)
     polish = converged and smoothing == "hybrid" and cap > 0 and len(p) > n_fixed
     if polish:
         p, tri, kept, iterations, triangulations = _repair(relax, kept)
@@ -628,6 +656,32 @@ def smooth(
     out_iseg = np.where(used[iseg], remap[iseg], -1)
     return SmoothResult(p[used], remap[tri], kept[used], iterations, bool(converged), triangulations,
                         out_walls, origin, relax.unsettled, out_iseg, igroup)
+
+
+def _settle(relax: _Relaxation) -> bool:
+    """Relax the few nodes still moving (the slow tail of the spring) on a sub-mesh.
+
+    Once at most ``TAIL_FRACTION`` of the nodes move more than ``DPTOL * hbar`` in a step, a
+    global step costs the whole mesh for a handful of nodes.  One more global step finds them;
+    the nodes within ``TAIL_RING`` edges of them then take spring steps on their own sub-mesh
+    (:func:`_patch`, the rest of the mesh held) until they are at rest, and the result
+    becomes the mesh's.  Returns True when that global step already met the convergence test.
+    """
+    before = relax.p.copy()
+    if relax.run("spring", 1):
+        return True
+    if relax.iterations >= relax.cap:
+        return False
+    moving = np.flatnonzero(np.hypot(*(relax.p - before).T) > DPTOL * relax.hbar)
+    if len(moving) == 0:
+        return False
+    p, tri, steps, extra = _patch(relax, relax.p, relax.tri, moving.astype(np.int64), relax.iterations,
+                                  ring=TAIL_RING, steps=relax.cap - relax.iterations)
+    relax.p[:] = p
+    relax.iterations += steps
+    relax.retriangulations += extra
+    relax._set_triangles(tri)
+    return False
 
 
 def _repair(
@@ -778,11 +832,13 @@ class _PatchInverted(Exception):
 
 
 def _patch(
-    relax: _Relaxation, p: FloatArray, tri: IntArray, touched: NDArray[np.int64], iterations: int
+    relax: _Relaxation, p: FloatArray, tri: IntArray, touched: NDArray[np.int64], iterations: int,
+    ring: int = REPAIR_RING, steps: int = REPAIR_STEPS,
 ) -> tuple[FloatArray, IntArray, int, int]:
-    """Spring steps on the nodes within ``REPAIR_RING`` edges of ``touched``, on a sub-mesh.
+    """Up to ``steps`` spring steps on the nodes within ``ring`` edges of ``touched``, on a
+    sub-mesh.
 
-    The sub-mesh holds every triangle with a node within ``REPAIR_RING + 1`` edges: the moving
+    The sub-mesh holds every triangle with a node within ``ring + 1`` edges: the moving
     nodes, and a ring of nodes that stay.  Every edge whose empty-circle test involves a moving
     node is then inside it, so its flips (its hull is never flipped) keep the whole mesh
     Delaunay, and the rest of the mesh is left as it is.  If a flip meets an inverted triangle
@@ -792,8 +848,8 @@ def _patch(
     from .kernels.smooth import adjacency, rings
 
     indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32))
-    active = rings(indptr, adj, touched, REPAIR_RING)
-    near = rings(indptr, adj, touched, REPAIR_RING + 1)
+    active = rings(indptr, adj, touched, ring)
+    near = rings(indptr, adj, touched, ring + 1)
     in_patch = near[tri].any(axis=1)
     nodes = np.unique(tri[in_patch])  # sorted: fixed and sliding nodes (< n_fixed) come first
     inv = np.full(len(p), -1, dtype=np.intp)
@@ -813,7 +869,7 @@ def _patch(
                             relax.cap, active=active[nodes], tri=inv[tri[in_patch]], project=project,
                             patch=True)
         state.iterations = iterations
-        state.run("spring", REPAIR_STEPS)
+        state.run("spring", steps)
         sub_tri = state.tri
     except _PatchInverted:
         # As before patches: the whole mesh, re-triangulated from scratch when a flip meets an
@@ -822,7 +878,7 @@ def _patch(
                             relax.callback, relax.cap, active=active, tri=tri, project=relax.project,
                             patch=relax._patch)
         state.iterations = iterations
-        state.run("spring", REPAIR_STEPS)
+        state.run("spring", steps)
         return state.p, state.tri, state.iterations - iterations, state.retriangulations
     out = p.copy()
     out[nodes] = state.p

@@ -224,16 +224,18 @@ def bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total):  # type: igno
 
 
 @njit(cache=True)
-def advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near):  # type: ignore[no-untyped-def]
+def advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near, tol):  # type: ignore[no-untyped-def]
     """Euler step (2.4) of the free nodes: ``p_i += dt * hbar_i * total_i``, the step clamped to
     ``step_cap * hbar_i``.
 
     Nodes with ``deep[i]`` (far enough inside that the step cannot leave the domain) move at
     once; the others' candidate positions go to ``cand[:c]`` and their indices to ``near[:c]``
     for the caller's inside test.  Returns ``(c, largest move of a deep node / hbar, that
-    node, largest drift from anchor / hbar over the deep nodes)``.
+    node, largest drift from anchor / hbar over the deep nodes, how many deep nodes moved
+    more than tol * hbar)``.
     """
     c = 0
+    count = 0
     worst = -1.0
     at = -1
     drift = 0.0
@@ -252,6 +254,8 @@ def advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near):  # ty
             p[i, 0] += sx
             p[i, 1] += sy
             mv = length / hb
+            if mv > tol:
+                count += 1
             if mv > worst:
                 worst = mv
                 at = i
@@ -263,7 +267,7 @@ def advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near):  # ty
             cand[c, 1] = p[i, 1] + sy
             near[c] = i
             c += 1
-    return c, worst, at, drift
+    return c, worst, at, drift, count
 
 
 @njit(cache=True)
