@@ -266,3 +266,47 @@ def test_lower_wins_is_the_greedy_independent_set(seed: int, n: int, k: int) -> 
     assert np.all(got <= keep)
     for v in np.flatnonzero(keep & ~got):
         assert np.any(got[lo[hi == v]]) or np.any(got[hi[lo == v]])
+
+
+def test_node_lists_follow_flips_in_place() -> None:
+    """After nodes move and Lawson flips change some triangles, the padded node lists updated
+    in place (pad_rows, flip_update) hold exactly the new triangulation's neighbours, each
+    entry pointing at a bar with those two ends."""
+    from injmesh.kernels.delaunay import flip_to_delaunay
+    from injmesh.kernels.mesh import neighbours
+    from injmesh.kernels.smooth import changed_rows, flip_update, pad_rows
+    from injmesh.smoothing import _KEY, _side_keys
+
+    exercised = 0
+    for seed in range(60):
+        rng = np.random.default_rng(seed)
+        n = int(rng.integers(10, 150))
+        p = rng.random((n, 2))
+        t32 = np.ascontiguousarray(delaunay(p), dtype=np.int32)
+        indptr, adj, eid, bars = adjacency(n, t32)
+        indptr, adj, eid = pad_rows(indptr, adj, eid, 3)
+        nbr = np.asarray(neighbours(t32.astype(np.int64), n), dtype=np.int32)
+        vt = np.full(n, -1, dtype=np.int32)
+        vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
+        before = t32.copy()
+        q = p + rng.normal(0.0, 0.02, p.shape)
+        if flip_to_delaunay(q, t32, nbr, np.zeros(t32.shape, dtype=np.uint8), vt) <= 0:
+            continue  # an inverted triangle (the caller re-triangulates) or nothing to flip
+        changed = changed_rows(t32, before)
+        old_e, new_e = _side_keys(before[changed]), _side_keys(t32[changed])
+        removed, added = np.setdiff1d(old_e, new_e), np.setdiff1d(new_e, old_e)
+        assert len(removed) == len(added) > 0
+        ids = flip_update(indptr, adj, eid, bars, np.stack([removed // _KEY, removed % _KEY], axis=1),
+                          np.stack([added // _KEY, added % _KEY], axis=1))
+        if len(ids) != len(removed):
+            continue  # a row ran out of free slots: the caller rebuilds
+        exercised += 1
+        expected = {tuple(e) for e in unique_edges(t32.astype(np.int64)).tolist()}
+        got = set()
+        for v in range(n):
+            for e in range(indptr[v], indptr[v + 1]):
+                if adj[e] >= 0:
+                    assert tuple(sorted((v, int(adj[e])))) == tuple(bars[eid[e]])
+                    got.add(tuple(sorted((v, int(adj[e])))))
+        assert got == expected
+    assert exercised >= 5

@@ -185,9 +185,11 @@ def mean_bar_size(indptr, eid, ld):  # type: ignore[no-untyped-def]
     out = np.zeros(n)
     for v in range(n):
         s = 0.0
+        d = 0
         for e in range(indptr[v], indptr[v + 1]):
-            s += ld[eid[e]]
-        d = indptr[v + 1] - indptr[v]
+            if eid[e] >= 0:
+                s += ld[eid[e]]
+                d += 1
         if d > 0:
             out[v] = s / d
     return out
@@ -209,6 +211,8 @@ def bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total):  # type: igno
         yi = p[i, 1]
         for e in range(indptr[i], indptr[i + 1]):
             j = adj[e]
+            if j < 0:  # a free slot of the row (see pad_rows)
+                continue
             vx = xi - p[j, 0]
             vy = yi - p[j, 1]
             d = ld[eid[e]]
@@ -289,7 +293,7 @@ def rings(indptr, adj, seeds, k):  # type: ignore[no-untyped-def]
             v = front[a]
             for e in range(indptr[v], indptr[v + 1]):
                 u = adj[e]
-                if not mask[u]:
+                if u >= 0 and not mask[u]:
                     mask[u] = True
                     nxt[nn] = u
                     nn += 1
@@ -383,7 +387,7 @@ def row_bars(indptr, eid, nodes, seen):  # type: ignore[no-untyped-def]
         v = nodes[a]
         for e in range(indptr[v], indptr[v + 1]):
             b = eid[e]
-            if not seen[b]:
+            if b >= 0 and not seen[b]:
                 seen[b] = True
                 out[w] = b
                 w += 1
@@ -397,10 +401,86 @@ def mean_bar_size_of(indptr, eid, ld, nodes, out):  # type: ignore[no-untyped-de
     """:func:`mean_bar_size` for ``nodes`` only, written to ``out[nodes]`` (rows with bars)."""
     for a in range(nodes.shape[0]):
         v = nodes[a]
-        d = indptr[v + 1] - indptr[v]
-        if d == 0:
-            continue
         s = 0.0
+        d = 0
         for e in range(indptr[v], indptr[v + 1]):
-            s += ld[eid[e]]
-        out[v] = s / d
+            if eid[e] >= 0:
+                s += ld[eid[e]]
+                d += 1
+        if d > 0:
+            out[v] = s / d
+
+
+@njit(cache=True)
+def pad_rows(indptr, adj, eid, slack):  # type: ignore[no-untyped-def]
+    """The CSR rows with ``slack`` free slots each (``adj`` and ``eid`` -1 there), so that
+    :func:`flip_update` can change a row's neighbours in place."""
+    n = indptr.shape[0] - 1
+    out_ptr = np.empty(n + 1, dtype=np.int64)
+    out_ptr[0] = 0
+    for v in range(n):
+        out_ptr[v + 1] = out_ptr[v] + (indptr[v + 1] - indptr[v]) + slack
+    out_adj = np.full(out_ptr[n], -1, dtype=np.int32)
+    out_eid = np.full(out_ptr[n], -1, dtype=np.int64)
+    for v in range(n):
+        w = out_ptr[v]
+        for e in range(indptr[v], indptr[v + 1]):
+            out_adj[w] = adj[e]
+            out_eid[w] = eid[e]
+            w += 1
+    return out_ptr, out_adj, out_eid
+
+
+@njit(cache=True)
+def flip_update(indptr, adj, eid, bars, removed, added):  # type: ignore[no-untyped-def]
+    """Edge flips applied to the padded CSR rows in place: edge ``removed[r]`` gives its bar
+    number to edge ``added[r]`` (the same count of each: a flip swaps one diagonal for the
+    other).  Returns the bar numbers reused, or an empty array when a row has no free slot
+    left (the caller then rebuilds the rows from the triangles)."""
+    k = removed.shape[0]
+    ids = np.empty(k, dtype=np.int64)
+    for r in range(k):
+        a, b = removed[r, 0], removed[r, 1]
+        bar = -1
+        for side in range(2):
+            u = a if side == 0 else b
+            o = b if side == 0 else a
+            for e in range(indptr[u], indptr[u + 1]):
+                if adj[e] == o:
+                    bar = eid[e]
+                    adj[e] = -1
+                    eid[e] = -1
+                    break
+        if bar < 0:
+            return np.empty(0, dtype=np.int64)
+        ids[r] = bar
+    for r in range(k):
+        c, d = added[r, 0], added[r, 1]
+        bar = ids[r]
+        for side in range(2):
+            u = c if side == 0 else d
+            o = d if side == 0 else c
+            slot = -1
+            for e in range(indptr[u], indptr[u + 1]):
+                if adj[e] < 0:
+                    slot = e
+                    break
+            if slot < 0:
+                return np.empty(0, dtype=np.int64)
+            adj[slot] = o
+            eid[slot] = bar
+        bars[bar, 0] = min(c, d)
+        bars[bar, 1] = max(c, d)
+    return ids
+
+
+@njit(cache=True)
+def changed_rows(a, b):  # type: ignore[no-untyped-def]
+    """Rows of the ``(m, 3)`` arrays that differ (the triangles flips replaced)."""
+    out = np.empty(a.shape[0], dtype=np.int64)
+    k = 0
+    for t in range(a.shape[0]):
+        if a[t, 0] != b[t, 0] or a[t, 1] != b[t, 1] or a[t, 2] != b[t, 2]:
+            out[k] = t
+            k += 1
+    return out[:k]
