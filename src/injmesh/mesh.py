@@ -37,7 +37,8 @@ class MeshStats:
     method : str
         ``"injection"`` (the paper's algorithm) or ``"distmesh"`` (the baseline).
     iterations : int
-        Smoothing iterations performed.
+        Smoothing iterations performed, in steps over the whole mesh (a step over part of it
+        counts the fraction of the nodes it moves).
     converged : bool
         Whether smoothing met its convergence test before the iteration cap.
     retriangulations : int

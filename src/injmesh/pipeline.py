@@ -84,7 +84,9 @@ def generate(
         Points that become mesh nodes and never move.  On the boundary they act as corners.
     max_iterations : int, optional
         Cap on smoothing iterations (default 1000 for injection, 10000 for DistMesh).  Reaching it
-        emits a :class:`ConvergenceWarning` and returns a mesh with ``converged=False``.
+        emits a :class:`ConvergenceWarning` and returns a mesh with ``converged=False``.  An
+        iteration is a step over the whole mesh; steps that move only part of it (the repair
+        rounds, the last nodes still moving) count in proportion to the nodes they move.
     max_nodes : int
         Refuse (:class:`NodeBudgetError`) a mesh that would need more nodes than this.  With
         ``target_nodes`` it is ``target_nodes`` that is checked against it (the stages' own

@@ -112,6 +112,7 @@ Other choices the paper leaves open:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal
@@ -164,6 +165,8 @@ TAIL_FRACTION = 0.02
 TAIL_MIN = 16
 TAIL_RING = 4
 TAIL_ROUNDS = 4
+#: Most steps of one local relaxation of the tail.
+TAIL_STEPS = 500
 #: Default iteration cap (all phases together).
 MAX_ITERATIONS = 1000
 #: Triangles below this quality are repaired; at most REPAIR_ROUNDS rounds.
@@ -287,6 +290,7 @@ class _Relaxation:
         tri: IntArray | None = None,
         project: NodeProjector | None = None,
         patch: bool = False,
+        total: int | None = None,
     ) -> None:
         from .kernels import smooth as kernels
 
@@ -298,7 +302,10 @@ class _Relaxation:
         self.project: NodeProjector = project or (lambda q, nodes: domain.project(q))
         self.n_fixed, self.slide, self.walls = n_fixed, slide, walls
         self.callback, self.cap = callback, cap
-        self.iterations = 0
+        #: Steps taken, in whole-mesh steps: a step of a sub-mesh (the repair's patches, the
+        #: slow tail) counts the fraction of the mesh's nodes it moves (``weight``), so the
+        #: iteration cap bounds the work, whatever the size of the parts that still move.
+        self.iterations = 0.0
         self.retriangulations = 0
         #: The last run stopped at its slow tail (see ``run``).
         self.in_tail = False
@@ -316,6 +323,9 @@ class _Relaxation:
         self._active = active
         self._sl = moving_slide
         self._moving = np.concatenate([self._free, moving_slide[:, 0]]).astype(np.intp)
+        #: Nodes of the whole mesh (this may be a sub-mesh of it), and the weight of a step.
+        self.total = n if total is None else int(total)
+        self.weight = min(1.0, len(self._moving) / max(self.total, 1))
         self._total = np.zeros((n, 2))
         self._cand = np.empty((len(self._free), 2))
         #: The node lists in CSR form (indptr, adj, eid) and the bars' desired lengths ld.
@@ -499,9 +509,9 @@ class _Relaxation:
         attraction = ATTRACTION if force == "attractive" else 0.0  # Eq. 3.4: f / lc = -0.2 / ld
         self.in_tail = False
         for _ in range(steps):
-            if self.iterations >= self.cap:
+            if self.iterations + self.weight > self.cap + 1e-9:
                 return False
-            self.iterations += 1
+            self.iterations += self.weight
             indptr, adj, eid, ld = self._csr
             k.bar_forces(p, self._moving, indptr, adj, eid, ld, attraction, self._total)
             c, worst, at, drift, count = k.advance(p, self._free, self._total, self.hbar, DT, STEP_CAP,
@@ -532,7 +542,7 @@ class _Relaxation:
             worst = max(worst, 0.0)
             at = max(at, 0)
             self.unsettled = (float(p[at, 0]), float(p[at, 1]))
-            report(self.callback, "smoothing", self.iterations, self.cap, nodes=n, max_move=worst,
+            report(self.callback, "smoothing", math.ceil(self.iterations), self.cap, nodes=n, max_move=worst,
                    force=force)
             if worst < DPTOL:
                 return True
@@ -681,8 +691,10 @@ def smooth(
     else:
         tri = relax.final()
         p, iterations, triangulations = relax.p, relax.iterations, relax.retriangulations
+    # Sub-mesh steps count in proportion (see _Relaxation.iterations); whole steps reported.
+    steps = math.ceil(iterations - 1e-9)
     # Repair rounds share the iteration cap: a run that reached it has not converged.
-    if polish and iterations >= cap:
+    if polish and steps >= cap:
         converged = False
     p, tri, extra = _conform(domain, p, tri, n_fixed, wall)
     triangulations += extra
@@ -713,7 +725,7 @@ def smooth(
     # the mesh's own check reports it.
     out_walls = np.where(used[wall], remap[wall], -1)
     out_iseg = np.where(used[iseg], remap[iseg], -1)
-    return SmoothResult(p[used], remap[tri], kept[used], iterations, bool(converged), triangulations,
+    return SmoothResult(p[used], remap[tri], kept[used], steps, bool(converged), triangulations,
                         out_walls, origin, relax.unsettled, out_iseg, igroup)
 
 
@@ -729,13 +741,13 @@ def _settle(relax: _Relaxation) -> bool:
     before = relax.p.copy()
     if relax.run("spring", 1):
         return True
-    if relax.iterations >= relax.cap:
+    if relax.iterations + 1 > relax.cap:
         return False
     moving = np.flatnonzero(np.hypot(*(relax.p - before).T) > DPTOL * relax.hbar)
     if len(moving) == 0:
         return False
     p, tri, steps, extra = _patch(relax, relax.p, relax.tri, moving.astype(np.int64), relax.iterations,
-                                  ring=TAIL_RING, steps=relax.cap - relax.iterations)
+                                  ring=TAIL_RING, steps=TAIL_STEPS)
     relax.p[:] = p
     relax.iterations += steps
     relax.retriangulations += extra
@@ -745,7 +757,7 @@ def _settle(relax: _Relaxation) -> bool:
 
 def _repair(
     relax: _Relaxation, kept: IntArray
-) -> tuple[FloatArray, IntArray, IntArray, int, int]:
+) -> tuple[FloatArray, IntArray, IntArray, float, int]:
     """Repair rounds (:func:`_repair_rounds`) on the part of the mesh around its bad triangles.
 
     The bad triangles are few and local; the rounds' bookkeeping (edits, flips, patches,
@@ -793,7 +805,7 @@ def _repair(
         return relax.project(pts, nodes[idx])
 
     sub = _Relaxation(relax.domain, relax.h, p[nodes], n_fixed, slide, walls, relax.callback,
-                      relax.cap, tri=inv[tri[inner]], project=project, patch=True)
+                      relax.cap, tri=inv[tri[inner]], project=project, patch=True, total=relax.total)
     sub.iterations = relax.iterations
     sp, stri, skept, iterations, triangulations = _repair_rounds(
         sub, np.arange(len(nodes)), outer_q)
@@ -820,7 +832,7 @@ def _repair(
 
 def _repair_rounds(
     relax: _Relaxation, kept: IntArray, outer_q: float = np.inf
-) -> tuple[FloatArray, IntArray, IntArray, int, int]:
+) -> tuple[FloatArray, IntArray, IntArray, float, int]:
     """Collapse or split the worst edge of bad triangles; keep the best round by q_min.
 
     Returns the points, triangles and ``kept`` map of the best round, and the total iterations
@@ -891,9 +903,9 @@ class _PatchInverted(Exception):
 
 
 def _patch(
-    relax: _Relaxation, p: FloatArray, tri: IntArray, touched: NDArray[np.int64], iterations: int,
+    relax: _Relaxation, p: FloatArray, tri: IntArray, touched: NDArray[np.int64], iterations: float,
     ring: int = REPAIR_RING, steps: int = REPAIR_STEPS,
-) -> tuple[FloatArray, IntArray, int, int]:
+) -> tuple[FloatArray, IntArray, float, int]:
     """Up to ``steps`` spring steps on the nodes within ``ring`` edges of ``touched``, on a
     sub-mesh.
 
@@ -926,7 +938,7 @@ def _patch(
     try:
         state = _Relaxation(relax.domain, relax.h, p[nodes], n_fixed, slide, walls, relax.callback,
                             relax.cap, active=active[nodes], tri=inv[tri[in_patch]], project=project,
-                            patch=True)
+                            patch=True, total=relax.total)
         state.iterations = iterations
         state.run("spring", steps)
         sub_tri = state.tri
@@ -935,7 +947,7 @@ def _patch(
         # inverted triangle.
         state = _Relaxation(relax.domain, relax.h, p, relax.n_fixed, relax.slide, relax.walls,
                             relax.callback, relax.cap, active=active, tri=tri, project=relax.project,
-                            patch=relax._patch)
+                            patch=relax._patch, total=relax.total)
         state.iterations = iterations
         state.run("spring", steps)
         return state.p, state.tri, state.iterations - iterations, state.retriangulations
