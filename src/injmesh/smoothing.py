@@ -422,11 +422,7 @@ class _Relaxation:
         elif everywhere:
             res = self._k_flip(self.p, self._t32, self._nbr, self._con, self._vt)
         else:
-            drift = np.hypot(*(self.p - self.anchor).T) / self.hbar
-            moved = np.flatnonzero(drift > LOCAL_DRIFT)
-            mask = np.zeros(len(self.p), dtype=bool)
-            mask[moved] = True
-            rows = np.flatnonzero(mask[self._t32].any(axis=1)).astype(np.int32)
+            moved, rows = self._k.drifted(self.p, self.anchor, self.hbar, LOCAL_DRIFT, self._t32)
             before = self._t32.copy()
             res = int(flip_rows_to_delaunay(self.p, self._t32, self._nbr, self._con, self._vt, rows))
         if res < 0:

@@ -484,3 +484,29 @@ def changed_rows(a, b):  # type: ignore[no-untyped-def]
             out[k] = t
             k += 1
     return out[:k]
+
+
+@njit(cache=True)
+def drifted(p, anchor, hbar, tol, tri):  # type: ignore[no-untyped-def]
+    """The nodes that moved more than ``tol * hbar`` from their anchors, and the rows of
+    ``tri`` (int32) that use one of them: where a connectivity update starts its flips."""
+    n = p.shape[0]
+    mark = np.zeros(n, dtype=np.bool_)
+    count = 0
+    for i in range(n):
+        if _norm(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) > tol * hbar[i]:
+            mark[i] = True
+            count += 1
+    moved = np.empty(count, dtype=np.int64)
+    k = 0
+    for i in range(n):
+        if mark[i]:
+            moved[k] = i
+            k += 1
+    rows = np.empty(tri.shape[0], dtype=np.int32)
+    r = 0
+    for t in range(tri.shape[0]):
+        if mark[tri[t, 0]] or mark[tri[t, 1]] or mark[tri[t, 2]]:
+            rows[r] = t
+            r += 1
+    return moved, rows[:r]
