@@ -185,6 +185,19 @@ def test_crack_crossing_an_inclusion_meets_it_at_a_node():
     assert length == pytest.approx(0.8, rel=1e-12)
 
 
+def test_tangent_regions_share_one_contact_node_and_say_so():
+    """Two discs touching at one point: the crossings of their polylines scatter around the
+    contact; they must become one node, and the cusp (no triangle in it can be well shaped)
+    must be reported, not left as a silent q = 0.001."""
+    regions = {"a": Circle((0.5, 0.5), 0.3), "b": Circle((1.1, 0.5), 0.3)}
+    with pytest.warns(UserWarning, match=r"'a' and 'b' meet at \(0\.8, 0\.5\)"):
+        mesh = injmesh.generate(Rectangle((0, 0), (2, 1)), 0.05, regions=regions)
+    assert_valid_mesh(mesh, Rectangle((0, 0), (2, 1)))
+    d = np.hypot(*(mesh.points - [0.8, 0.5]).T)
+    assert d.min() < 1e-9  # a node at the contact
+    assert np.sort(d)[1] > 0.05 * 0.05  # and no second one next to it
+
+
 def test_a_region_given_as_a_plain_function():
     disc = lambda q: np.hypot(q[:, 0] - 0.5, q[:, 1] - 0.5) - 0.3  # noqa: E731
     mesh = injmesh.generate(SQUARE, 0.06, regions={"disc": disc})

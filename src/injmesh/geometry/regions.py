@@ -11,7 +11,10 @@ fault, a sensor line).  Both become *pieces*: polylines between *junctions*, whe
   regions' corners and the curves' end points.  They become fixed nodes.
 
 Every piece carries its own exact projection (the region's, or the polyline's), so Step 1 and
-the smoothing keep its nodes on it.  Inputs are checked here, once: a region that leaves the
+the smoothing keep its nodes on it.  Crossings closer than ``JUNCTION_MERGE * h_min`` are one
+junction (regions that touch at a point give a cluster of nearly equal crossings), and curves
+that meet at less than ``NARROW_ANGLE`` degrees there are reported with a warning: no triangle
+in such an angle can be well shaped.  Inputs are checked here, once: a region that leaves the
 domain, two regions that overlap, a curve that leaves the domain or crosses itself each raise
 :class:`RegionError` or :class:`CurveError` naming the region or curve and a point.
 """
@@ -36,6 +39,14 @@ Projector = Callable[[FloatArray], FloatArray]
 
 #: Alternating projections that place a crossing of two curved pieces on both.
 CROSSING_ITERATIONS = 20
+#: Crossings closer than this fraction of h_min are one junction.  Where two curves touch
+#: (tangent circles) the crossings of their polylines are ill-conditioned and scatter around
+#: the contact by ~1e-3 h: kept apart, they became two nodes 4e-5 apart and a triangle with
+#: q = 0.001.  Two junctions this close could not be resolved by elements of size h anyway.
+JUNCTION_MERGE = 0.05
+#: Curves meeting at a smaller angle (degrees) at a junction get a warning: no triangle in
+#: that angle can be well shaped.
+NARROW_ANGLE = 10.0
 
 
 class RegionError(GeometryError):
@@ -154,7 +165,8 @@ def build_constraints(
     _check_overlaps(names, doms, h_min, eps)
     for c, (name, line) in enumerate(zip(curve_names, lines, strict=True)):
         pieces.append(_curve_piece(domain, name, line, c, h_min, eps))
-    pieces = _join(pieces, eps)
+    pieces = _join(pieces, eps, max(10 * eps, JUNCTION_MERGE * h_min))
+    _warn_narrow_angles(pieces, names, curve_names)
     junctions = [p.points[p.fixed] for p in pieces]
     allj = np.concatenate(junctions) if junctions else np.empty((0, 2))
     on = np.abs(domain.sdf(allj)) <= eps if len(allj) else np.zeros(0, dtype=bool)
@@ -401,8 +413,9 @@ def _intersection(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray) ->
 # --- junctions between pieces -----------------------------------------------------------------
 
 
-def _join(pieces: list[Piece], eps: float) -> list[Piece]:
-    """Insert as fixed vertices the points where pieces cross or where one ends on another."""
+def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
+    """Insert as fixed vertices the points where pieces cross or where one ends on another
+    (crossings closer than ``merge`` are one)."""
     extra: list[list[FloatArray]] = [[] for _ in pieces]
     for i, pi in enumerate(pieces):
         ai, bi = _segments(pi)
@@ -422,13 +435,60 @@ def _join(pieces: list[Piece], eps: float) -> list[Piece]:
                         x = pj.project(pi.project(x[None, :]))[0]
                     extra[i].append(x)
                     extra[j].append(x)
+    # One list of junctions for every piece, so that pieces meeting there share the point.
+    allx = _unique_points(np.array([x for more in extra for x in more]), merge) if any(extra) else None
     out = []
     for p, more in zip(pieces, extra, strict=True):
-        if not more:
+        if not more or allx is None:
             out.append(p)
             continue
-        out.append(_insert(p, _unique_points(np.array(more), 10 * eps), eps))
+        mine = np.array(more)
+        near = np.min(np.hypot(*(allx[:, None, :] - mine[None, :, :]).transpose(2, 0, 1)), axis=1) <= merge
+        out.append(_insert(p, allx[near], eps))
     return out
+
+
+def _warn_narrow_angles(pieces: list[Piece], region_names: list[str], curve_names: list[str]) -> None:
+    """Warn where curves meet at less than ``NARROW_ANGLE`` degrees (touching regions, a crack
+    grazing an interface): the triangles in that angle cannot be well shaped."""
+    import warnings
+
+    dirs: dict[tuple[float, float], list[tuple[float, str]]] = {}
+    for p in pieces:
+        name = region_names[p.owner - 1] if p.owner > 0 else curve_names[-1 - p.owner]
+        n = len(p.points)
+        for v in np.flatnonzero(p.fixed):
+            key = (float(p.points[v, 0]), float(p.points[v, 1]))
+            for w in (v - 1, v + 1):
+                if not p.closed and not 0 <= w < n:
+                    continue
+                d = p.points[w % n] - p.points[v]
+                dirs.setdefault(key, []).append((float(np.arctan2(d[1], d[0])), name))
+    for (x, y), rays in dirs.items():
+        if len(rays) < 3:
+            continue
+        ang = np.sort([a for a, _ in rays])
+        gaps = np.degrees(np.diff(np.concatenate([ang, ang[:1] + 2 * np.pi])))
+        if gaps.min() < NARROW_ANGLE:
+            names = sorted({nm for _, nm in rays})
+            warnings.warn(
+                f"{' and '.join(repr(nm) for nm in names)} meet at ({x:.6g}, {y:.6g}) at "
+                f"{gaps.min():.2g} degrees: the triangles in that angle cannot be well shaped "
+                f"(q at most about {_angle_bound(float(gaps.min())):.2g})",
+                stacklevel=4,
+            )
+
+
+def _angle_bound(degrees: float) -> float:
+    """The best q of a triangle with an angle of ``degrees`` (isosceles on that angle)."""
+    a = np.radians(degrees)
+    # Isosceles with apex angle a: sides 1, 1 and 2 sin(a/2); q = 2 r_in / r_out.
+    b = 2 * np.sin(a / 2)
+    s = 0.5 * (2 + b)
+    area = 0.5 * np.sin(a)
+    r_in = area / s
+    r_out = b / (2 * np.sin(a)) if a > 0 else np.inf
+    return float(2 * r_in / r_out)
 
 
 def _segments(p: Piece) -> tuple[FloatArray, FloatArray]:
