@@ -44,9 +44,10 @@ Other choices the paper leaves open:
   by the fronts, at the tip of a fan into a narrow inlet) has a gain ``DT * hbar * stiffness``
   above 2: the node swings across its place at the step cap for ever and the run never
   converges (a coastline: 1000 steps, no repair, q_min 0.10).  Each node's force is scaled
-  down where that gain exceeds ``STABLE_GAIN = 1`` (``kernels.smooth.bar_forces``); a node at
-  rest among six to ten neighbours has 0.6-1.0 and is never touched (the paper's cases give
-  the same meshes bit for bit).  The coastline converges in 12 s, q_min 0.13.
+  down where that gain exceeds ``STABLE_GAIN = 1`` (``kernels.smooth.stable_scale``, per
+  connectivity update like ld); a node at rest among six to ten neighbours has 0.6-1.0 and
+  is never touched (the paper's cases give the same meshes bit for bit).  The coastline
+  converges in 12 s, q_min 0.13.
 * **Boundary nodes.**  Corners, curve anchors and user points never move.  Other boundary nodes
   slide: their force is half the total bar force and half the spring force of their two
   boundary bars (measured over the six cases at h/2, h and 2h: worst q_min 0.73, against 0.59
@@ -404,6 +405,9 @@ class _Relaxation:
             hbar[lonely] = self.h(p[lonely])
         self._csr = (indptr, adj, eid, ld)
         self.hbar = hbar
+        # The stability limit of each moving node's step (see kernels.smooth.stable_scale).
+        self._damp = np.ones(len(p))
+        k.stable_scale(p, self._moving, indptr, adj, eid, ld, DT * hbar, STABLE_GAIN, self._damp)
         if len(self._sl):
             b, bp, bn = self._sl.T
             self._ld_slide = (self.h(0.5 * (p[b] + p[bp])), self.h(0.5 * (p[b] + p[bn])))
@@ -496,6 +500,8 @@ class _Relaxation:
         if len(self._sl):
             b, bp, bn = self._sl.T
             self._ld_slide = (self.h(0.5 * (p[b] + p[bp])), self.h(0.5 * (p[b] + p[bn])))
+        near = np.flatnonzero(k.rings(indptr, self._csr[1], nodes.astype(np.int64), 1))
+        k.stable_scale(p, near, indptr, self._csr[1], eid, ld, DT * self.hbar, STABLE_GAIN, self._damp)
         free = nodes[self._is_free[nodes]]
         if len(free):
             self._deep[free] = self.domain.sdf(p[free]) < -DEEP * self.hbar[free]
@@ -524,8 +530,7 @@ class _Relaxation:
                 return False
             self.iterations += self.weight
             indptr, adj, eid, ld = self._csr
-            k.bar_forces(p, self._moving, indptr, adj, eid, ld, attraction, self._total,
-                         DT * self.hbar, STABLE_GAIN)
+            k.bar_forces(p, self._moving, indptr, adj, eid, ld, attraction, self._total, self._damp)
             c, worst, at, drift, count = k.advance(p, self._free, self._total, self.hbar, DT, STEP_CAP,
                                                    self._deep, self.anchor, self._cand, self._near,
                                                    DPTOL)

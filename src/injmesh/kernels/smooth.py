@@ -196,29 +196,19 @@ def mean_bar_size(indptr, eid, ld):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total, step, gain):  # type: ignore[no-untyped-def]
-    """Sum of the bar forces on each node of ``nodes``, written to ``total[node]``.
+def bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total, damp):  # type: ignore[no-untyped-def]
+    """Sum of the bar forces on each node of ``nodes``, times ``damp[node]``, written to
+    ``total[node]``.
 
     ``attraction > 0``: the attractive force of Eq. (3.4), ``f / lc = -attraction / ld``;
     ``attraction == 0``: the spring ``f / lc = (ld - lc) / (ld lc)``.  The force on i from bar
-    (i, j) is ``f / lc * (p_i - p_j)``.
-
-    Stability limit: the Euler step of node i will be ``step[i] * total[i]``.  With J_i the
-    stiffness of node i (minus the derivative of its force by its own position, a 2 x 2
-    matrix summed over its bars: ``u u^T / ld`` along a bar, ``(1/ld - 1/lc) (I - u u^T)``
-    across a stretched one), the step is stable and without overshoot while
-    ``step[i] * lambda_max(J_i) <= 1``.  A node at rest among six neighbours has 0.6 there;
-    a node pulled by many stretched bars (in a hole, at the tip of a fan) exceeds 2 and
-    swings back and forth for ever.  Its force is scaled down to ``gain`` (``gain = inf``
-    leaves every force as it is).
+    (i, j) is ``f / lc * (p_i - p_j)``.  ``damp`` is the stability limit of
+    :func:`stable_scale` (1 for almost every node).
     """
     for a in range(nodes.shape[0]):
         i = nodes[a]
         fx = 0.0
         fy = 0.0
-        jxx = 0.0
-        jxy = 0.0
-        jyy = 0.0
         xi = p[i, 0]
         yi = p[i, 1]
         for e in range(indptr[i], indptr[i + 1]):
@@ -230,27 +220,48 @@ def bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total, step, gain):  
             d = ld[eid[e]]
             if attraction > 0.0:
                 c = -attraction / d
-                jxx -= c
-                jyy -= c
             else:
                 lc = max(_norm(vx, vy), 1e-300)
                 c = (d - lc) / (d * lc)
-                ux = vx / lc
-                uy = vy / lc
-                across = max(0.0, 1.0 / d - 1.0 / lc)
-                jxx += ux * ux / d + across * (1.0 - ux * ux)
-                jyy += uy * uy / d + across * (1.0 - uy * uy)
-                jxy += ux * uy * (1.0 / d - across)
             fx += c * vx
             fy += c * vy
+        total[i, 0] = fx * damp[i]
+        total[i, 1] = fy * damp[i]
+
+
+@njit(cache=True)
+def stable_scale(p, nodes, indptr, adj, eid, ld, step, gain, out):  # type: ignore[no-untyped-def]
+    """The stability limit of the Euler step of each node of ``nodes``, written to ``out``.
+
+    The step of node i is ``step[i]`` times its spring force.  With J_i its stiffness (minus
+    the derivative of that force by its own position: a 2 x 2 matrix summed over its bars,
+    ``u u^T / ld`` along a bar and ``(1/ld - 1/lc) (I - u u^T)`` across a stretched one), the
+    step is stable and does not overshoot while ``step[i] * lambda_max(J_i) <= 1``.  A node
+    at rest among six neighbours has 0.6 there; one pulled by many stretched bars (in a hole,
+    at the tip of a fan) exceeds 2 and swings across its place for ever.  ``out[i]`` is
+    ``min(1, gain / (step[i] * lambda_max(J_i)))``, the factor on its force.
+    """
+    for a in range(nodes.shape[0]):
+        i = nodes[a]
+        jxx = 0.0
+        jxy = 0.0
+        jyy = 0.0
+        for e in range(indptr[i], indptr[i + 1]):
+            j = adj[e]
+            if j < 0:
+                continue
+            vx = p[i, 0] - p[j, 0]
+            vy = p[i, 1] - p[j, 1]
+            d = ld[eid[e]]
+            lc = max(_norm(vx, vy), 1e-300)
+            across = max(0.0, 1.0 / d - 1.0 / lc)  # across a stretched bar, else 0
+            w = (1.0 / d - across) / (lc * lc)
+            jxx += across + w * vx * vx
+            jyy += across + w * vy * vy
+            jxy += w * vx * vy
         half = 0.5 * (jxx - jyy)
-        lam = 0.5 * (jxx + jyy) + math.sqrt(half * half + jxy * jxy)
-        g = step[i] * lam
-        if g > gain:
-            fx *= gain / g
-            fy *= gain / g
-        total[i, 0] = fx
-        total[i, 1] = fy
+        g = step[i] * (0.5 * (jxx + jyy) + math.sqrt(half * half + jxy * jxy))
+        out[i] = gain / g if g > gain else 1.0
 
 
 @njit(cache=True)
