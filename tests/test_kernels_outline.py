@@ -142,3 +142,25 @@ def test_thick_everywhere_on_simple_domains() -> None:
     # ``needed`` below the gap everywhere: thick.
     assert thick_everywhere(channel, 0.3, 30.0, needed=lambda p: np.full(len(p), 0.1))
     assert not thick_everywhere(channel, 0.3, 30.0, needed=lambda p: np.full(len(p), 0.25))
+
+
+def test_unrestricted_size_equals_the_restricted_one_inside() -> None:
+    from injmesh.boundary import corner_size
+    from injmesh.sizing import as_size_function, effective_size
+    from injmesh.sizing.features import unrestricted
+
+    domain = shapes.large(0, n_vertices=600).domain()
+    rng = np.random.default_rng(2)
+    x0, y0, x1, y1 = domain.bbox
+    p = rng.uniform((x0, y0), (x1, y1), (5000, 2))
+    inside = domain.sdf(p) <= 0
+    for size in (0.05, lambda q: 0.04 + 0.02 * np.abs(q[:, 0])):
+        h = corner_size(domain, as_size_function(size))
+        # A small max_cells: the grid is too coarse for h, min(grid, h restricted) is returned.
+        target = effective_size(h, domain, max_cells=20_000)
+        fast = unrestricted(target, h)
+        if callable(size):  # a user function may not be asked outside: kept restricted
+            assert fast is target
+        else:
+            assert fast is not target
+        assert np.array_equal(fast(p[inside]), target(p[inside]))

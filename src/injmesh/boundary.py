@@ -381,6 +381,9 @@ class _CornerCap:
         self.h, self.corners, self.spacing, self.rate = h, corners, spacing, rate
         self.s_min = float(spacing.min())
         self.tree = cKDTree(corners)
+        # Cones over a uniform size are meaningful anywhere: callers that evaluate h just
+        # outside the domain need not project there first (sizing.features.unrestricted).
+        self.everywhere = getattr(h, "constant", None) is not None
 
     def __call__(self, p: FloatArray) -> FloatArray:
         hp = self.h(p)

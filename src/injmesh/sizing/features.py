@@ -507,6 +507,26 @@ class _Lower:
         return np.minimum(self.a(p), self.b(p))
 
 
+def unrestricted(size: SizeFunction, h: SizeFunction) -> SizeFunction:
+    """``size``, as :func:`effective_size` returned it for h, for a caller that evaluates it only
+    inside the domain and on its boundary, or just outside (the mesher's stages: midpoints of
+    boundary edges where the boundary is concave).
+
+    Where the grid was too coarse for h (``min(grid, h restricted to the domain)``) and h is
+    defined everywhere (a uniform size, or a function object with a true ``everywhere``
+    attribute, such as the corner cones of :func:`injmesh.boundary.corner_size` over a uniform
+    size), h is called as it is: the restriction's signed-distance call, the larger part of an
+    evaluation on a detailed outline, is left out.  The values differ only at points outside
+    the domain (h there rather than at their projection onto the boundary).  Otherwise
+    ``size`` itself.
+    """
+    f = size.function
+    safe = h.constant is not None or getattr(h.function, "everywhere", False) is True
+    if safe and isinstance(f, _Lower) and isinstance(f.b, SizeFunction) and f.b.function is h.function:
+        return SizeFunction(_Lower(f.a, h))
+    return size
+
+
 def effective_size(
     size: SizeLike,
     domain: Domain | Callable[[FloatArray], FloatArray],
