@@ -164,3 +164,54 @@ def test_unrestricted_size_equals_the_restricted_one_inside() -> None:
         else:
             assert fast is not target
         assert np.array_equal(fast(p[inside]), target(p[inside]))
+
+
+def _cones_reference(p, hp, corners, spacing, rate, k):
+    """The k-d tree query ``corner_size``'s cap made before the kernel."""
+    reach = (hp.max() - spacing.min()) / rate
+    dist, near = cKDTree(corners).query(p, k=k, distance_upper_bound=reach)
+    dist, near = dist.reshape(len(p), k), near.reshape(len(p), k)
+    seen = near < len(corners)
+    s = spacing[np.minimum(near, len(corners) - 1)]
+    return np.minimum(hp, np.where(seen, s + rate * dist, np.inf).min(axis=1))
+
+
+@pytest.mark.parametrize("layout", ["random", "outline", "line", "one"])
+def test_corner_cones_match_the_k_nearest_query(layout: str) -> None:
+    from injmesh.kernels.outline import cell_grid, corner_cones
+
+    rng = np.random.default_rng(5)
+    if layout == "random":
+        corners = rng.random((500, 2))
+    elif layout == "outline":
+        corners = shapes.large(1, n_vertices=800).rings[0]
+    elif layout == "line":  # no extent across: a one-row grid
+        corners = np.stack([rng.random(300), np.full(300, 0.5)], axis=1)
+    else:
+        corners = np.array([[0.3, 0.4]])
+    corners = np.ascontiguousarray(corners, dtype=float)
+    spacing = 0.001 + 0.02 * rng.random(len(corners))
+    lo, hi = corners.min(axis=0) - 0.3, corners.max(axis=0) + 0.3
+    p = np.concatenate([rng.uniform(lo, hi, (4000, 2)), corners, [[50.0, -40.0]]])
+    for hp in (0.01 + 0.05 * rng.random(len(p)), np.full(len(p), 3.0)):
+        for cell in (0.003, 0.02, 0.2):
+            grid = cell_grid(corners, cell)
+            for k in {1, min(6, len(corners))}:
+                for rate in (0.1, 0.5):
+                    got = corner_cones(p, hp, corners, spacing, rate, k, spacing.min(), grid, cell)
+                    assert np.array_equal(got, _cones_reference(p, hp, corners, spacing, rate, k))
+                    assert np.all(got <= hp)
+
+
+def test_corner_size_on_a_small_cluster_of_corners_is_fast_far_away() -> None:
+    # Two corners close together in a big domain with a large h: every point's search stops
+    # at the ring farther than its k-th corner (this once scanned 4,000 rows per point).
+    from injmesh.boundary import _CornerCap
+    from injmesh.sizing import as_size_function
+
+    cap = _CornerCap(as_size_function(lambda p: 0.2 + np.hypot(*p.T)), np.array([[1.0, 0.0], [1.0, 0.08]]),
+                     np.array([0.08, 0.08]), 0.2)
+    p = np.random.default_rng(0).uniform(-2, 2, (20000, 2))
+    out = cap(p)
+    ref = _cones_reference(p, 0.2 + np.hypot(*p.T), cap.corners, cap.spacing, 0.2, 2)
+    assert np.array_equal(out, ref)

@@ -152,3 +152,86 @@ def _judge(a, s, v, seg, seg_len, v_n, seg_n, width, back_to_back, cos):  # type
     if dist < width and own > cos and -other > cos:
         return 2, fx, fy, dist
     return 0, fx, fy, dist
+
+
+@nb.njit(cache=True)
+def cell_grid(v, size):  # type: ignore[no-untyped-def]
+    """A uniform grid of cells ``size`` wide over points ``v (n, 2)``:
+    ``x0, y0, nx, ny, order, first`` (the points of cell c are ``order[first[c]:first[c + 1]]``,
+    cell c = row * nx + column)."""
+    _, order, first, nx, ny = _cells(v, size)
+    return v[:, 0].min(), v[:, 1].min(), nx, ny, order, first
+
+
+@nb.njit(cache=True)
+def corner_cones(p, hp, corners, spacing, rate, k, s_min, grid, size):  # type: ignore[no-untyped-def]
+    """``min(hp, min_c (spacing[c] + rate |p - c|))`` over the ``k`` corners c nearest to each
+    point of ``p (n, 2)``.
+
+    The corners are searched on ``grid`` (:func:`cell_grid` of the corners, cells ``size``
+    wide) ring of cells by ring of cells, from the point's cell outwards, until the ring is
+    farther than the k-th nearest corner found so far or than ``(hp - s_min) / rate`` (no
+    farther corner can lower hp: ``s_min`` is the smallest spacing).  Distances are
+    ``sqrt(dx * dx + dy * dy)``; of corners at exactly the same distance the one listed first
+    counts first.
+    """
+    x0, y0, nx, ny, order, first = grid
+    n = p.shape[0]
+    out = np.empty(n)
+    best_d2 = np.empty(max(k, 1))
+    best_c = np.empty(max(k, 1), dtype=np.int64)
+    big = 2.0 ** 40
+    for i in range(n):
+        x, y = p[i, 0], p[i, 1]
+        out[i] = hp[i]
+        reach = (hp[i] - s_min) / rate
+        if not (math.isfinite(x) and math.isfinite(y)) or k < 1 or not reach > 0.0:
+            continue
+        r2_reach = reach * reach
+        cx = int(math.floor(min(max((x - x0) / size, -big), big)))
+        cy = int(math.floor(min(max((y - y0) / size, -big), big)))
+        # Rings from the first that meets the grid to the one holding its farthest cell.
+        r0 = max(0, -cx, cx - (nx - 1), -cy, cy - (ny - 1))
+        last = max(abs(cx), abs(cx - (nx - 1)), abs(cy), abs(cy - (ny - 1)))
+        found = 0
+        for ring in range(r0, last + 1):
+            # Every cell of this ring is at least (ring - 1) cell widths from the point.
+            gap = (ring - 1) * size
+            if gap > 0.0 and (gap * gap >= r2_reach or (found == k and gap * gap > best_d2[k - 1])):
+                break
+            for gy in range(max(cy - ring, 0), min(cy + ring, ny - 1) + 1):
+                whole = gy == cy - ring or gy == cy + ring  # top and bottom rows of the ring
+                lo = max(cx - ring, 0) if whole else cx - ring
+                hi = min(cx + ring, nx - 1)
+                for gx in range(lo, hi + 1, 1 if whole else 2 * ring):
+                    if gx < 0:
+                        continue
+                    c = gy * nx + gx
+                    for kk in range(first[c], first[c + 1]):
+                        j = order[kk]
+                        dx = x - corners[j, 0]
+                        dy = y - corners[j, 1]
+                        d2 = dx * dx + dy * dy
+                        if not d2 < r2_reach:
+                            continue
+                        if found == k and not (d2 < best_d2[k - 1] or (d2 == best_d2[k - 1]
+                                                                      and j < best_c[k - 1])):
+                            continue
+                        # Insert (d2, j) by distance, then index; a full list drops its last.
+                        at = found if found < k else k - 1
+                        while at > 0 and (best_d2[at - 1] > d2 or (best_d2[at - 1] == d2
+                                                                   and best_c[at - 1] > j)):
+                            best_d2[at] = best_d2[at - 1]
+                            best_c[at] = best_c[at - 1]
+                            at -= 1
+                        best_d2[at] = d2
+                        best_c[at] = j
+                        if found < k:
+                            found += 1
+        v = hp[i]
+        for t in range(found):
+            cone = spacing[best_c[t]] + rate * math.sqrt(best_d2[t])
+            if cone < v:
+                v = cone
+        out[i] = v
+    return out
