@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from injmesh import Circle, Polygon, Rectangle, shapes
@@ -196,9 +197,12 @@ def test_corner_cones_match_the_k_nearest_query(layout: str) -> None:
     for hp in (0.01 + 0.05 * rng.random(len(p)), np.full(len(p), 3.0)):
         for cell in (0.003, 0.02, 0.2):
             grid = cell_grid(corners, cell)
+            nx, ny, first = grid[2], grid[3], grid[5]
+            empty = (np.diff(first) == 0).reshape(ny, nx)
+            rings = ndimage.distance_transform_cdt(empty, metric="chessboard").ravel().astype(np.int64)
             for k in {1, min(6, len(corners))}:
                 for rate in (0.1, 0.5):
-                    got = corner_cones(p, hp, corners, spacing, rate, k, spacing.min(), grid, cell)
+                    got = corner_cones(p, hp, corners, spacing, rate, k, spacing.min(), grid, cell, rings)
                     assert np.array_equal(got, _cones_reference(p, hp, corners, spacing, rate, k))
                     assert np.all(got <= hp)
 

@@ -396,6 +396,14 @@ class _CornerCap:
         mean = math.sqrt(float(extent[0]) * float(extent[1]) / n)
         self.cell = max(0.5 * mean, float(extent.max()) / (4.0 * math.sqrt(n) + 1.0), 1e-300)
         self.grid = cell_grid(self.corners, self.cell)
+        # Rings of empty cells around each cell, skipped by the search: far from every corner
+        # (the middle of the domain) a point is done at once.
+        from scipy import ndimage
+
+        nx, ny, first = self.grid[2], self.grid[3], self.grid[5]
+        empty = (np.diff(first) == 0).reshape(ny, nx)
+        self.empty_rings = np.ascontiguousarray(
+            ndimage.distance_transform_cdt(empty, metric="chessboard").ravel(), dtype=np.int64)
 
     def __call__(self, p: FloatArray) -> FloatArray:
         from .kernels.outline import corner_cones
@@ -406,7 +414,7 @@ class _CornerCap:
         out: FloatArray = corner_cones(
             np.ascontiguousarray(p, dtype=np.float64), np.ascontiguousarray(hp, dtype=np.float64),
             self.corners, self.spacing, float(self.rate), min(CORNER_CONES, len(self.corners)),
-            self.s_min, self.grid, self.cell)
+            self.s_min, self.grid, self.cell, self.empty_rings)
         return out
 
 

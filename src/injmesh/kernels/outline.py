@@ -164,14 +164,17 @@ def cell_grid(v, size):  # type: ignore[no-untyped-def]
 
 
 @nb.njit(cache=True)
-def corner_cones(p, hp, corners, spacing, rate, k, s_min, grid, size):  # type: ignore[no-untyped-def]
+def corner_cones(p, hp, corners, spacing, rate, k, s_min, grid, size,  # type: ignore[no-untyped-def]
+                 empty_rings):
     """``min(hp, min_c (spacing[c] + rate |p - c|))`` over the ``k`` corners c nearest to each
     point of ``p (n, 2)``.
 
     The corners are searched on ``grid`` (:func:`cell_grid` of the corners, cells ``size``
     wide) ring of cells by ring of cells, from the point's cell outwards, until the ring is
     farther than the k-th nearest corner found so far or than ``(hp - s_min) / rate`` (no
-    farther corner can lower hp: ``s_min`` is the smallest spacing).  Distances are
+    farther corner can lower hp: ``s_min`` is the smallest spacing).  ``empty_rings[c]`` is the
+    number of rings around cell c that hold no corner (its chessboard distance in cells to the
+    nearest cell that does): the search starts beyond them.  Distances are
     ``sqrt(dx * dx + dy * dy)``; of corners at exactly the same distance the one listed first
     counts first.
     """
@@ -192,6 +195,8 @@ def corner_cones(p, hp, corners, spacing, rate, k, s_min, grid, size):  # type: 
         cy = int(math.floor(min(max((y - y0) / size, -big), big)))
         # Rings from the first that meets the grid to the one holding its farthest cell.
         r0 = max(0, -cx, cx - (nx - 1), -cy, cy - (ny - 1))
+        if r0 == 0:
+            r0 = empty_rings[cy * nx + cx]
         last = max(abs(cx), abs(cx - (nx - 1)), abs(cy), abs(cy - (ny - 1)))
         found = 0
         for ring in range(r0, last + 1):
