@@ -357,3 +357,43 @@ def test_bit_identical_repeats_with_one_or_two_threads() -> None:
     exec(code.replace("print(", "digest = ("), namespace)
     assert namespace["digest"] == out[0]
     assert hashlib.sha256(b"").hexdigest() != out[0]
+
+
+def _even_odd(q: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The plain loop over every segment that ``inside_polygon`` replaced."""
+    out = np.zeros(len(q), dtype=bool)
+    for i in range(len(a)):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cross = (a[i, 1] > q[:, 1]) != (b[i, 1] > q[:, 1])
+            xint = a[i, 0] + (q[:, 1] - a[i, 1]) * (b[i, 0] - a[i, 0]) / (b[i, 1] - a[i, 1])
+        out ^= cross & (q[:, 0] < xint)
+    return out
+
+
+@pytest.mark.parametrize("shape", ["fractal", "comb", "flat", "square"])
+def test_inside_polygon_by_strips_matches_the_plain_even_odd_loop(shape: str) -> None:
+    from injmesh import shapes
+    from injmesh.triangulation import inside_polygon
+
+    rng = np.random.default_rng(3)
+    if shape == "fractal":
+        ring = shapes.large(0, n_vertices=600).rings[0]
+    elif shape == "comb":  # tall segments: every strip holds many of them
+        xs = np.linspace(0, 1, 200)
+        ring = np.stack([xs, np.tile([0.0, 1.0], 100)], axis=1)
+    elif shape == "flat":  # no height at all
+        ring = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    else:
+        ring = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    a, b = ring, np.roll(ring, -1, axis=0)
+    lo, hi = ring.min(axis=0) - 0.2, ring.max(axis=0) + 0.2
+    q = np.concatenate([
+        rng.uniform(lo, hi, (3000, 2)),
+        ring, 0.5 * (a + b),  # on vertices and on segments
+        np.stack([rng.uniform(lo[0], hi[0], len(ring)), ring[:, 1]], axis=1),  # at vertex heights
+        [[0.5, np.nan], [np.inf, 0.5], [0.5, -np.inf]],
+    ])
+    got = inside_polygon(q, a, b)
+    assert np.array_equal(got, _even_odd(q, a, b))
+    if shape != "flat":
+        assert got.any() and not got.all()

@@ -24,6 +24,7 @@ from .injection import inject_nodes
 from .mesh import Mesh, MeshStats
 from .progress import Callback
 from .sizing import GriddedSize, SizeFunction, SizeLike, as_size_function, effective_size
+from .sizing.features import unrestricted
 from .smoothing import Interfaces, Smoothing, SmoothResult, smooth
 from .triangulation import boundary_edges
 from .validate import Defect, mesh_defects
@@ -456,7 +457,9 @@ def _target_size(
     gradation on a background grid.  When it changes nothing it returns h restricted to the
     domain (evaluated only inside, one sdf call per evaluation); the stages then call h itself,
     capped at the diameter, and ask it only inside (see injection and boundary), which saves
-    that sdf call at every smoothing step.
+    that sdf call at every smoothing step.  When it returns the grid's sizes lowered by h
+    restricted to the domain (a grid too coarse for h), the stages likewise call h itself
+    (:func:`~injmesh.sizing.features.unrestricted`).
     """
     if feature_layers is None and gradation is None:
         target = h.restricted(domain)
@@ -470,7 +473,9 @@ def _target_size(
             raise
     if target.domain is not None and target.function is h.function:
         return target, _capped(h, domain.diameter)
-    return target, target
+    # A grid too coarse for h keeps h's detail as min(grid, h restricted): the stages call h
+    # itself there too, for the same reason.
+    return target, unrestricted(target, h)
 
 
 # --- target_nodes -----------------------------------------------------------------------------

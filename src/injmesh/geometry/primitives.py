@@ -313,16 +313,13 @@ def _perimeter(v: FloatArray) -> float:
 def _clean_ring(ring: FloatArray, tolerance: float) -> tuple[FloatArray, int, int]:
     """Merge consecutive vertices closer than ``tolerance`` and drop spikes, until neither
     applies.  Returns the ring and the counts of merged vertices and spikes."""
+    from ..kernels.outline import merge_close
+
     merged = spikes = 0
     v = ring
     for _ in range(len(ring) + 1):
-        # Merge runs of close vertices into their first vertex.
-        keep = [0]
-        for i in range(1, len(v)):
-            if np.hypot(*(v[i] - v[keep[-1]])) >= tolerance:
-                keep.append(i)
-        while len(keep) > 1 and np.hypot(*(v[keep[-1]] - v[keep[0]])) < tolerance:
-            keep.pop()
+        # Merge runs of close vertices into their first vertex (compiled: a sequential walk).
+        keep = merge_close(np.ascontiguousarray(v), float(tolerance))
         merged += len(v) - len(keep)
         v = v[keep]
         if len(v) < 3:

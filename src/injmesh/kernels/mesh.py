@@ -471,16 +471,65 @@ def classify_by_walls(tri, nbr, walls, n):  # type: ignore[no-untyped-def]
 
 @njit(cache=True)
 def inside_polygon(q, a, b):  # type: ignore[no-untyped-def]
-    """Even-odd test of points q against the segments a[i] -> b[i]."""
-    out = np.empty(q.shape[0], dtype=np.bool_)
-    for s in range(q.shape[0]):
+    """Even-odd test of points q against the segments a[i] -> b[i].
+
+    A segment changes the parity of a point at height y only when y lies in its y-range, so the
+    segments are listed in horizontal strips (each in every strip its closed y-range touches;
+    about four entries per segment in all) and a point tests only those of its own strip, with
+    the same crossing test as the plain loop over all segments: the same answers in
+    O(segments in a strip) per point.  The strip of a height is a monotone function of it, so
+    a segment is never missed at a strip border.
+    """
+    n, m = q.shape[0], a.shape[0]
+    out = np.zeros(n, dtype=np.bool_)
+    if m == 0 or n == 0:
+        return out
+    y0 = min(a[:, 1].min(), b[:, 1].min())
+    y1 = max(a[:, 1].max(), b[:, 1].max())
+    # About 4 m strip entries in all: a strip per segment, fewer when segments are tall.
+    tall = 0.0
+    for i in range(m):
+        tall += abs(b[i, 1] - a[i, 1])
+    n_strips = 1
+    if y1 > y0 and tall > 0.0:
+        n_strips = int(min(float(m), max(1.0, 4.0 * m * (y1 - y0) / tall)))
+    inv = n_strips / (y1 - y0) if y1 > y0 else 0.0
+    lo = np.empty(m, dtype=np.int64)
+    hi = np.empty(m, dtype=np.int64)
+    count = np.zeros(n_strips + 1, dtype=np.int64)
+    for i in range(m):
+        lo[i] = _strip(min(a[i, 1], b[i, 1]), y0, inv, n_strips)
+        hi[i] = _strip(max(a[i, 1], b[i, 1]), y0, inv, n_strips)
+        for k in range(lo[i], hi[i] + 1):
+            count[k + 1] += 1
+    start = np.cumsum(count)
+    fill = start[:-1].copy()
+    seg = np.empty(start[-1], dtype=np.int64)
+    for i in range(m):  # increasing i within each strip: the plain loop's order
+        for k in range(lo[i], hi[i] + 1):
+            seg[fill[k]] = i
+            fill[k] += 1
+    for s in range(n):
         x = q[s, 0]
         y = q[s, 1]
+        k = _strip(y, y0, inv, n_strips)
         odd = False
-        for i in range(a.shape[0]):
+        for j in range(start[k], start[k + 1]):
+            i = seg[j]
             if (a[i, 1] > y) != (b[i, 1] > y):
                 xint = a[i, 0] + (y - a[i, 1]) * (b[i, 0] - a[i, 0]) / (b[i, 1] - a[i, 1])
                 if x < xint:
                     odd = not odd
         out[s] = odd
     return out
+
+
+@njit(cache=True, inline="always")
+def _strip(y, y0, inv, n_strips):  # type: ignore[no-untyped-def]
+    """The strip of height y: floor((y - y0) * inv) clamped to 0 .. n_strips - 1 (monotone)."""
+    t = (y - y0) * inv
+    if not t > 0.0:  # below, at y0, or NaN
+        return 0
+    if t >= n_strips:
+        return n_strips - 1
+    return int(t)

@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -216,10 +217,10 @@ def thinnest_gap(domain: Domain, grid: Background, corner_angle: float) -> float
     return float(dist[across].min()) if across.any() else np.inf
 
 
-def _dot(u: FloatArray, w: FloatArray) -> FloatArray:
-    """Row-wise dot products of two ``(k, 2)`` arrays."""
-    out: FloatArray = np.einsum("kj,kj->k", u, w)
-    return out
+def _outline() -> Any:
+    from ..kernels import outline
+
+    return outline
 
 
 def thick_everywhere(domain: Domain, width: float, corner_angle: float,
@@ -247,9 +248,10 @@ def thick_everywhere(domain: Domain, width: float, corner_angle: float,
 
     False when the domain has no exact boundary (a plain signed distance) or the test would
     need more than ``THICK_MAX_VERTICES`` vertices: the caller then computes the feature size.
-    """
-    from scipy.spatial import cKDTree
 
+    The vertex pairs and the facing test are compiled (:mod:`injmesh.kernels.outline`): a
+    detailed outline has hundreds of vertex pairs per vertex within ``width``.
+    """
     brep = exact_boundary(domain)
     if brep is None or not (width > 0 and math.isfinite(width)):
         return False
@@ -276,39 +278,20 @@ def thick_everywhere(domain: Domain, width: float, corner_angle: float,
     chord = v[nxt] - v[prv]
     v_n = np.stack([-chord[:, 1], chord[:, 0]], axis=1)
     v_n /= np.maximum(np.hypot(*v_n.T), np.finfo(float).tiny)[:, None]
-    pairs = cKDTree(v).query_pairs(max(width, back_to_back) + step, output_type="ndarray")
-    if not len(pairs):
-        return True
-    # Both directions, and both segments at the partner vertex.
-    a = np.concatenate([pairs[:, 0], pairs[:, 1]])
-    b = np.concatenate([pairs[:, 1], pairs[:, 0]])
-    a = np.concatenate([a, a])
-    s = np.concatenate([b, prv[b]])
-    own = (s == a) | (s == prv[a])
-    a, s = a[~own], s[~own]
-    ab = seg[s]
-    t = np.clip(np.einsum("kj,kj->k", v[a] - v[s], ab) / np.maximum(seg_len[s] ** 2, np.finfo(float).tiny),
-                0.0, 1.0)
-    foot = v[s] + t[:, None] * ab
-    gap = foot - v[a]
-    dist = np.hypot(*gap.T)
     cos = math.cos(math.radians(min(corner_angle + FACING_SLACK, 89.0)))
-    if back_to_back > 0:
-        near = (dist > 0) & (dist < back_to_back)
-        e = gap[near] / dist[near][:, None]
-        behind = (_dot(e, v_n[a[near]]) < -cos) & (_dot(e, seg_n[s[near]]) > cos)
-        if behind.any():
-            return False
-    close = (dist > 0) & (dist < width)
-    e = gap[close] / dist[close][:, None]
-    facing = (_dot(e, v_n[a[close]]) > cos) & (-_dot(e, seg_n[s[close]]) > cos)
-    if needed is None or not facing.any():
-        return not bool(facing.any())
-    start_pt, end_pt = v[a[close][facing]], foot[close][facing]
+    walls = _outline()
+    behind, a, foot, dist = walls.facing_walls(v, prv, seg, seg_len, v_n, seg_n,
+                                               max(width, back_to_back) + step, width,
+                                               back_to_back, cos, needed is None)
+    if behind or not len(a):
+        return not behind
+    if needed is None:
+        return False
+    start_pt = v[a]
     frac = np.linspace(0.0, 1.0, 5)
-    along = (start_pt[None, :, :] + frac[:, None, None] * (end_pt - start_pt)[None, :, :]).reshape(-1, 2)
+    along = (start_pt[None, :, :] + frac[:, None, None] * (foot - start_pt)[None, :, :]).reshape(-1, 2)
     want = np.max(needed(along).reshape(len(frac), -1), axis=0)
-    return not bool(np.any(dist[close][facing] < want))
+    return not bool(np.any(dist < want))
 
 
 def refine_for_gaps(domain: Domain, grid: Background, corner_angle: float, max_cells: int) -> Background:
@@ -522,6 +505,26 @@ class _Lower:
 
     def __call__(self, p: FloatArray) -> FloatArray:
         return np.minimum(self.a(p), self.b(p))
+
+
+def unrestricted(size: SizeFunction, h: SizeFunction) -> SizeFunction:
+    """``size``, as :func:`effective_size` returned it for h, for a caller that evaluates it only
+    inside the domain and on its boundary, or just outside (the mesher's stages: midpoints of
+    boundary edges where the boundary is concave).
+
+    Where the grid was too coarse for h (``min(grid, h restricted to the domain)``) and h is
+    defined everywhere (a uniform size, or a function object with a true ``everywhere``
+    attribute, such as the corner cones of :func:`injmesh.boundary.corner_size` over a uniform
+    size), h is called as it is: the restriction's signed-distance call, the larger part of an
+    evaluation on a detailed outline, is left out.  The values differ only at points outside
+    the domain (h there rather than at their projection onto the boundary).  Otherwise
+    ``size`` itself.
+    """
+    f = size.function
+    safe = h.constant is not None or getattr(h.function, "everywhere", False) is True
+    if safe and isinstance(f, _Lower) and isinstance(f.b, SizeFunction) and f.b.function is h.function:
+        return SizeFunction(_Lower(f.a, h))
+    return size
 
 
 def effective_size(
