@@ -803,8 +803,10 @@ def _why(
                     "its meshes are finer than the h it states.")
         if key == "iterations":
             return ("The paper leaves its stopping condition SC undefined; ours stops when no "
-                    "node moves more than 1e-3 h in a step and then repairs the worst triangles "
-                    "(smoothing.py), so step counts are not comparable.")
+                    "node moves more than 3e-3 h in a step and then repairs the worst triangles, "
+                    "and counts steps over part of the mesh (repairs, the last nodes still "
+                    "moving) in proportion to the nodes they move (smoothing.py), so step counts "
+                    "are not comparable.")
         if key == "q_min":
             if measured > paper:
                 return ("Ours is higher: after the force smoothing we repair and polish the "
