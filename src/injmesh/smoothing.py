@@ -812,18 +812,8 @@ def _repair(
     # Sub-mesh numbering: the mesh's fixed nodes, the band, then the nodes that may move.
     nodes = np.concatenate([nodes[~free], nodes[stay], nodes[free & ~stay]])
     n_fixed = int(np.count_nonzero(~free) + np.count_nonzero(stay))
-    inv = np.full(len(p), -1, dtype=np.intp)
-    inv[nodes] = np.arange(len(nodes))
-    slide = relax.slide[movable[relax.slide[:, 0]]]
-    slide = inv[slide]
-    slide = slide[(slide >= 0).all(axis=1)]
-    walls = inv[relax.walls]
-    walls = walls[(walls >= 0).all(axis=1)]
+    inv, slide, walls, project = _restricted(relax, nodes, movable)
     outer_q = float(q[~inner].min()) if (~inner).any() else np.inf
-
-    def project(pts: FloatArray, idx: IntArray) -> FloatArray:
-        return relax.project(pts, nodes[idx])
-
     sub = _Relaxation(relax.domain, relax.h, p[nodes], n_fixed, slide, walls, relax.callback,
                       relax.cap, tri=inv[tri[inner]], project=project, patch=True, total=relax.total)
     sub.iterations = relax.iterations
@@ -918,6 +908,27 @@ def _repair_rounds(
     return p, tri, best[3], iterations, triangulations
 
 
+def _restricted(
+    relax: _Relaxation, nodes: IntArray, moving: NDArray[np.bool_]
+) -> tuple[IntArray, IntArray, IntArray, NodeProjector]:
+    """What a sub-mesh on ``nodes`` (its numbering: ``nodes[k]`` is its node k) needs of
+    ``relax``: the map from the mesh's numbering (-1 outside), the sliding rows of the nodes
+    that may move (``moving``, a mask over the mesh as it is now, which repair edits may have
+    grown or shrunk since ``relax``), the boundary segments inside, and the
+    projection of its sliding nodes onto their own curves."""
+    inv = np.full(len(moving), -1, dtype=np.intp)
+    inv[nodes] = np.arange(len(nodes))
+    slide = inv[relax.slide[moving[relax.slide[:, 0]]]]
+    slide = slide[(slide >= 0).all(axis=1)]
+    walls = inv[relax.walls]
+    walls = walls[(walls >= 0).all(axis=1)]
+
+    def project(q: FloatArray, idx: IntArray) -> FloatArray:
+        return relax.project(q, nodes[idx])
+
+    return inv, slide, walls, project
+
+
 class _PatchInverted(Exception):
     """A patch's flips met an inverted triangle: it cannot be re-triangulated on its own."""
 
@@ -943,17 +954,7 @@ def _patch(
     near = rings(indptr, adj, touched, ring + 1)
     in_patch = near[tri].any(axis=1)
     nodes = np.unique(tri[in_patch])  # sorted: fixed and sliding nodes (< n_fixed) come first
-    inv = np.full(len(p), -1, dtype=np.intp)
-    inv[nodes] = np.arange(len(nodes))
-    slide = relax.slide[active[relax.slide[:, 0]]]
-    slide = inv[slide]
-    slide = slide[(slide >= 0).all(axis=1)]
-    walls = inv[relax.walls]
-    walls = walls[(walls >= 0).all(axis=1)]
-
-    def project(q: FloatArray, idx: IntArray) -> FloatArray:
-        return relax.project(q, nodes[idx])
-
+    inv, slide, walls, project = _restricted(relax, nodes, active)
     n_fixed = int(np.searchsorted(nodes, relax.n_fixed))
     try:
         state = _Relaxation(relax.domain, relax.h, p[nodes], n_fixed, slide, walls, relax.callback,

@@ -183,15 +183,7 @@ def mean_bar_size(indptr, eid, ld):  # type: ignore[no-untyped-def]
     """hbar: the mean desired length of the bars at each node (0 for a node with no bar)."""
     n = indptr.shape[0] - 1
     out = np.zeros(n)
-    for v in range(n):
-        s = 0.0
-        d = 0
-        for e in range(indptr[v], indptr[v + 1]):
-            if eid[e] >= 0:
-                s += ld[eid[e]]
-                d += 1
-        if d > 0:
-            out[v] = s / d
+    mean_bar_size_of(indptr, eid, ld, np.arange(n), out)
     return out
 
 
