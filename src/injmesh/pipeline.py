@@ -920,16 +920,22 @@ def _region_features(domain: Domain, h: SizeFunction, cons: Constraints, layers:
     boundary gave q_min 0.61 without this.  The domain's own feature size and the gradation
     limit are applied afterwards, as without regions.
     """
-    from .sizing import feature_size
+    from .sizing.features import thin_feature_size
 
     rest: Domain = domain
     for r in cons.regions:
         rest = rest - r
-    sizes = [feature_size(part) for part in (*cons.regions, rest)]
+    # A part on which no two walls face each other within a few h (a circle several h across)
+    # needs no feature grid: it would change nothing, and costs ~50 ms per part.
+    sizes = [thin_feature_size(part, h, float(layers)) for part in (*cons.regions, rest)]
+    if all(fs is None for fs in sizes):
+        return h
     lowered = _LowerInParts(h, list(cons.regions), sizes, float(layers))
     # Where no part is thinner than layers * h (probed on each feature grid inside the domain),
     # h is kept as it is: evaluated at every smoothing step, it should cost no more than h.
     for fs in sizes:
+        if fs is None:
+            continue
         gx, gy = np.meshgrid(fs.x, fs.y)
         q = np.stack([gx.ravel(), gy.ravel()], axis=1)
         q = q[domain.sdf(q) < 0]
@@ -943,7 +949,7 @@ class _LowerInParts:
     or (the last) of the rest of the domain; only the regions' d are evaluated, since h is asked
     inside the domain only."""
 
-    def __init__(self, h: SizeFunction, regions: list[Domain], sizes: list[GriddedSize],
+    def __init__(self, h: SizeFunction, regions: list[Domain], sizes: list[GriddedSize | None],
                  layers: float) -> None:
         self.h, self.regions, self.sizes, self.layers = h, regions, sizes, layers
 
@@ -953,8 +959,9 @@ class _LowerInParts:
         for region, fs in zip(self.regions, self.sizes, strict=False):
             inside = region.sdf(p) <= 0
             rest &= ~inside
-            if inside.any():
+            if fs is not None and inside.any():
                 out[inside] = np.minimum(out[inside], fs(p[inside]) / self.layers)
-        if rest.any():
-            out[rest] = np.minimum(out[rest], self.sizes[-1](p[rest]) / self.layers)
+        last = self.sizes[-1]
+        if last is not None and rest.any():
+            out[rest] = np.minimum(out[rest], last(p[rest]) / self.layers)
         return out

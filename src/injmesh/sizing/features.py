@@ -497,6 +497,29 @@ def feature_size(
     return GriddedSize._trusted(grid.x, grid.y, _fill_outside(fs))
 
 
+def thin_feature_size(
+    domain: Domain, size: SizeLike, layers: float, corner_angle: float = 30.0
+) -> GriddedSize | None:
+    """:func:`feature_size` of ``domain`` if some part of it is thinner than ``layers`` times h,
+    None when no two of its walls face each other that close (:func:`thick_everywhere`).
+
+    The test needs no grid, so a region that is thick everywhere (a circular inclusion several h
+    across) costs a few milliseconds instead of a feature grid.  For a variable h the bound is
+    the largest h of :func:`probe_range`'s sample with the slack :func:`effective_size` uses.
+    """
+    h = as_size_function(size)
+    if exact_boundary(domain) is not None:
+        if h.constant is not None:
+            if _thick_uniform(domain, h.constant, layers, corner_angle):
+                return None
+        else:
+            lo, hi = probe_range(h, domain)
+            fine = min(lo / CELLS_PER_H, domain.diameter / FEATURE_CELLS)
+            if _thick(domain, PROBE_SLACK * hi, layers, corner_angle, fine, h.restricted(domain)):
+                return None
+    return feature_size(domain, corner_angle=corner_angle)
+
+
 class _Lower:
     """``min(a(p), b(p))`` of two size functions (used when the grid is coarser than h)."""
 
