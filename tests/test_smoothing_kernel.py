@@ -343,3 +343,37 @@ def test_a_node_pulled_by_many_stretched_bars_does_not_overshoot(neighbours: int
         after = np.hypot(*p[0])
         assert after <= before + 1e-15  # no overshoot past the centre
     assert np.hypot(*p[0]) < 1e-6
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10_000))
+def test_renew_neighbours_after_a_patch_is_rewritten(seed: int) -> None:
+    """The slow tail's patch writes its flipped triangles over its own rows, in another order
+    and starting corner: the neighbour table renewed from those rows alone equals the table
+    built from scratch."""
+    from injmesh.kernels.delaunay import flip_to_delaunay
+    from injmesh.kernels.mesh import neighbours, renew_neighbours
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(20, 300))
+    p = rng.random((n, 2))
+    t32 = np.ascontiguousarray(delaunay(p), dtype=np.int32)
+    nbr = np.asarray(neighbours(t32.astype(np.int64), n), dtype=np.int32)
+    # A patch: the triangles near a random point; its interior nodes move, it re-flips alone.
+    centre = rng.random(2)
+    rows = np.flatnonzero(np.hypot(*(p[t32].mean(axis=1) - centre).T) < 0.3)
+    if len(rows) == 0:
+        return
+    sub = t32[rows].copy()
+    inner = np.setdiff1d(np.unique(sub), np.unique(t32[np.setdiff1d(np.arange(len(t32)), rows)]))
+    q = p.copy()
+    q[inner] += rng.normal(0.0, 0.01, (len(inner), 2))
+    sub_nbr = np.asarray(neighbours(sub.astype(np.int64), n), dtype=np.int32)
+    vt = np.full(n, -1, dtype=np.int32)
+    vt[sub.ravel()] = np.repeat(np.arange(len(sub), dtype=np.int32), 3)
+    if flip_to_delaunay(q, sub, sub_nbr, np.zeros(sub.shape, dtype=np.uint8), vt) < 0:
+        return  # an inverted triangle: the caller falls back to the whole mesh
+    order = rng.permutation(len(rows))
+    t32[rows] = np.roll(sub[order], int(rng.integers(0, 3)), axis=1)
+    renew_neighbours(t32, nbr, rows.astype(np.int64))
+    assert np.array_equal(nbr, np.asarray(neighbours(t32.astype(np.int64), n), dtype=np.int32))

@@ -766,12 +766,33 @@ def _settle(relax: _Relaxation) -> bool:
     moving = np.flatnonzero(np.hypot(*(relax.p - before).T) > DPTOL * relax.hbar)
     if len(moving) == 0:
         return False
-    p, tri, steps, extra = _patch(relax, relax.p, relax.tri, moving.astype(np.int64), relax.iterations,
-                                  ring=TAIL_RING, steps=TAIL_STEPS)
-    relax.p[:] = p
-    relax.iterations += steps
-    relax.retriangulations += extra
-    relax._set_triangles(tri)
+    local = _patch_local(relax, relax.p, relax.tri, moving.astype(np.int64), relax.iterations,
+                         ring=TAIL_RING, steps=TAIL_STEPS, csr=relax._csr[:2])
+    if local is None:
+        # A flip met an inverted triangle: as _patch, on the whole mesh.
+        p, tri, steps, extra = _patch(relax, relax.p, relax.tri, moving.astype(np.int64), relax.iterations,
+                                      ring=TAIL_RING, steps=TAIL_STEPS)
+        relax.p[:] = p
+        relax.iterations += steps
+        relax.retriangulations += extra
+        relax._set_triangles(tri)
+        return False
+    state, nodes, rows = local
+    relax.iterations += state.iterations - relax.iterations
+    relax.retriangulations += state.retriangulations
+    relax.p[nodes] = state.p
+    # The patch only flipped (its hull stayed): its triangles replace its rows, and the node
+    # lists are updated in place from the flips' edge differences, as after a local
+    # re-triangulation; a whole-mesh rebuild costs ~1 s at 1e6 nodes.
+    before = relax._t32.copy()
+    relax._t32[rows] = nodes[state.tri].astype(np.int32)
+    from .kernels.mesh import renew_neighbours
+
+    renew_neighbours(relax._t32, relax._nbr, rows)
+    relax._vt[relax._t32[rows].ravel()] = np.repeat(rows.astype(np.int32), 3)
+    moved = nodes[state._moving]
+    if not relax._flipped(before, moved.astype(np.intp)):
+        relax._set_triangles(relax._t32.astype(np.intp))
     return False
 
 
@@ -947,9 +968,43 @@ def _patch(
     (a re-triangulation from scratch would have to be global) the round relaxes on the whole
     mesh instead.  Returns the points, triangles, steps and triangulations.
     """
+    local = _patch_local(relax, p, tri, touched, iterations, ring, steps)
+    if local is None:
+        # As before patches: the whole mesh, re-triangulated from scratch when a flip meets an
+        # inverted triangle.
+        from .kernels.smooth import adjacency, rings
+
+        indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32))
+        active = rings(indptr, adj, touched, ring)
+        whole = _Relaxation(relax.domain, relax.h, p, relax.n_fixed, relax.slide, relax.walls,
+                            relax.callback, relax.cap, active=active, tri=tri, project=relax.project,
+                            patch=relax._patch, total=relax.total)
+        whole.iterations = iterations
+        whole.run("spring", steps)
+        return whole.p, whole.tri, whole.iterations - iterations, whole.retriangulations
+    state, nodes, rows = local
+    in_patch = np.zeros(len(tri), dtype=bool)
+    in_patch[rows] = True
+    out = p.copy()
+    out[nodes] = state.p
+    return (out, np.concatenate([tri[~in_patch], nodes[state.tri]]), state.iterations - iterations,
+            state.retriangulations)
+
+
+def _patch_local(
+    relax: _Relaxation, p: FloatArray, tri: IntArray, touched: NDArray[np.int64], iterations: float,
+    ring: int, steps: int, csr: tuple[NDArray[np.int64], NDArray[np.int32]] | None = None,
+) -> tuple[_Relaxation, IntArray, IntArray] | None:
+    """The sub-mesh relaxation of :func:`_patch`: its state (numbered as ``nodes``, the mesh's
+    nodes it holds) and the rows of ``tri`` it replaces, or None when a flip met an inverted
+    triangle.  Flips keep the number of triangles, so ``state.tri`` has as many as ``rows``.
+    ``csr``: the node lists ``(indptr, adj)`` of ``tri`` when the caller has them."""
     from .kernels.smooth import adjacency, rings
 
-    indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32))
+    if csr is None:
+        indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32))
+    else:
+        indptr, adj = csr
     active = rings(indptr, adj, touched, ring)
     near = rings(indptr, adj, touched, ring + 1)
     in_patch = near[tri].any(axis=1)
@@ -962,20 +1017,9 @@ def _patch(
                             patch=True, total=relax.total)
         state.iterations = iterations
         state.run("spring", steps)
-        sub_tri = state.tri
     except _PatchInverted:
-        # As before patches: the whole mesh, re-triangulated from scratch when a flip meets an
-        # inverted triangle.
-        state = _Relaxation(relax.domain, relax.h, p, relax.n_fixed, relax.slide, relax.walls,
-                            relax.callback, relax.cap, active=active, tri=tri, project=relax.project,
-                            patch=relax._patch, total=relax.total)
-        state.iterations = iterations
-        state.run("spring", steps)
-        return state.p, state.tri, state.iterations - iterations, state.retriangulations
-    out = p.copy()
-    out[nodes] = state.p
-    return (out, np.concatenate([tri[~in_patch], nodes[sub_tri]]), state.iterations - iterations,
-            state.retriangulations)
+        return None
+    return state, nodes, np.flatnonzero(in_patch)
 
 
 def _edited(tri: IntArray, alive: NDArray[np.bool_], collapse: IntArray, split: IntArray) -> IntArray:

@@ -533,3 +533,50 @@ def _strip(y, y0, inv, n_strips):  # type: ignore[no-untyped-def]
     if t >= n_strips:
         return n_strips - 1
     return int(t)
+
+
+@njit(cache=True)
+def renew_neighbours(tri, nbr, rows):  # type: ignore[no-untyped-def]
+    """Update :func:`neighbours`' table ``nbr`` in place after the triangles of ``rows`` were
+    replaced by others covering the same region (flips inside a patch whose outline stayed).
+
+    ``nbr`` still holds the old entries: the triangles outside ``rows`` that touched them are
+    found there.  Each side of a triangle of ``rows`` is paired with its twin among those
+    triangles and ``rows``; the outside triangles' entries that pointed into ``rows`` are
+    paired again.  The cost follows ``len(rows)``, not the mesh.
+    """
+    m = tri.shape[0]
+    inr = np.zeros(m, dtype=np.bool_)
+    for r in rows:
+        inr[r] = True
+    seen = np.zeros(m, dtype=np.bool_)
+    outs = np.empty(3 * rows.shape[0], dtype=np.int64)
+    no = 0
+    for r in rows:
+        for k in range(3):
+            u = nbr[r, k]
+            if u >= 0 and not inr[u] and not seen[u]:
+                seen[u] = True
+                outs[no] = u
+                no += 1
+    s = np.concatenate((rows.astype(np.int64), outs[:no]))
+    top = 0
+    for t in s:
+        for k in range(3):
+            top = max(top, tri[t, k])
+    base = np.int64(top) + 1
+    keys = np.empty(3 * s.shape[0], dtype=np.int64)
+    for a in range(s.shape[0]):
+        t = s[a]
+        for k in range(3):
+            keys[3 * a + k] = np.int64(tri[t, (k + 1) % 3]) * base + tri[t, (k + 2) % 3]
+    order = np.argsort(keys)
+    sk = keys[order]
+    for a in range(s.shape[0]):
+        t = s[a]
+        for k in range(3):
+            if not inr[t] and (nbr[t, k] < 0 or not inr[nbr[t, k]]):
+                continue  # an outside triangle's side that never touched the patch
+            twin = np.int64(tri[t, (k + 2) % 3]) * base + tri[t, (k + 1) % 3]
+            j = np.searchsorted(sk, twin)
+            nbr[t, k] = s[order[j] // 3] if j < sk.shape[0] and sk[j] == twin else -1
