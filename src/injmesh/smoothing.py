@@ -354,6 +354,8 @@ class _Relaxation:
         self._is_free = np.zeros(n, dtype=bool)
         self._is_free[self._free] = True
         self._seen = np.zeros(0, dtype=np.bool_)
+        #: d at each free node's anchor, or an upper bound of it for deep nodes (0 elsewhere).
+        self._d0 = np.zeros(0)
         self._set_triangles(triangulate(domain, p, walls) if tri is None else tri)
 
     def _projector(self, nodes: IntArray) -> Callable[[FloatArray], FloatArray]:
@@ -414,12 +416,35 @@ class _Relaxation:
         if len(self._sl):
             b, bp, bn = self._sl.T
             self._ld_slide = (self.h(0.5 * (p[b] + p[bp])), self.h(0.5 * (p[b] + p[bn])))
-        deep = np.zeros(len(p), dtype=np.bool_)
-        if len(self._free):
-            deep[self._free] = self.domain.sdf(p[self._free]) < -DEEP * hbar[self._free]
-        self._deep = deep
+        if len(self._d0) != len(p):
+            self._d0 = np.zeros(len(p))
+            self._deep = np.zeros(len(p), dtype=np.bool_)
+            self.anchor = np.full_like(p, np.nan)  # no bound yet: every free node is evaluated
+        self._inside_depth(self._free)
         self.anchor = p.copy()
         self.retriangulations += 1
+
+    def _inside_depth(self, free: IntArray) -> None:
+        """Renew ``_d0`` and ``_deep`` of the free nodes ``free`` before their anchors move to
+        where they are.
+
+        d moves by at most the distance moved (a signed distance is 1-Lipschitz), so
+        ``d0 + |p - anchor|`` bounds d from above: a node whose bound is below
+        ``-DEEP * hbar`` is deep without asking the domain, and keeps the bound as its
+        ``d0``.  Only the others (a few rows along the boundary) are evaluated, which leaves
+        ``_deep`` as the exact test would and spares a detailed outline's distance queries
+        over the whole mesh.
+        """
+        if not len(free):
+            return
+        p = self.p
+        bound = self._d0[free] + np.hypot(*(p[free] - self.anchor[free]).T)
+        sure = bound < -DEEP * self.hbar[free]  # NaN (no anchor yet) is not
+        self._d0[free[sure]] = bound[sure]
+        ask = free[~sure]
+        if len(ask):
+            self._d0[ask] = self.domain.sdf(p[ask])
+        self._deep[free] = self._d0[free] < -DEEP * self.hbar[free]
 
     def retriangulate(self, everywhere: bool = False) -> None:
         """Make the triangulation Delaunay again after the nodes moved (see the module doc).
@@ -505,9 +530,7 @@ class _Relaxation:
             self._ld_slide = (self.h(0.5 * (p[b] + p[bp])), self.h(0.5 * (p[b] + p[bn])))
         near = np.flatnonzero(k.rings(indptr, self._csr[1], nodes.astype(np.int64), 1))
         k.stable_scale(p, near, indptr, self._csr[1], eid, ld, DT * self.hbar, STABLE_GAIN, self._damp)
-        free = nodes[self._is_free[nodes]]
-        if len(free):
-            self._deep[free] = self.domain.sdf(p[free]) < -DEEP * self.hbar[free]
+        self._inside_depth(nodes[self._is_free[nodes]])
         self.anchor[nodes] = p[nodes]
         self.retriangulations += 1
 
@@ -540,7 +563,13 @@ class _Relaxation:
             if c:
                 # Nodes near the boundary: a step that would leave the domain is not taken.
                 idx, new = self._near[:c], self._cand[:c]
-                ok = ~(self.domain.sdf(new) > 0)
+                # A node still within half its anchor's depth of its anchor is inside (the
+                # factor 2 DEEP allows for inexact signed distances): the sdf is asked only
+                # for the few that went further, the costly call on a detailed outline.
+                ok = np.hypot(*(new - self.anchor[idx]).T) < -0.5 * self._d0[idx]
+                rest = np.flatnonzero(~ok)
+                if len(rest):
+                    ok[rest] = ~(self.domain.sdf(new[rest]) > 0)
                 idx, new = idx[ok], new[ok]
                 if len(idx):
                     hb = self.hbar[idx]
