@@ -428,17 +428,21 @@ class _Relaxation:
         """Renew ``_d0`` and ``_deep`` of the free nodes ``free`` before their anchors move to
         where they are.
 
-        d moves by at most the distance moved (a signed distance is 1-Lipschitz), so
-        ``d0 + |p - anchor|`` bounds d from above: a node whose bound is below
-        ``-DEEP * hbar`` is deep without asking the domain, and keeps the bound as its
+        When the domain's d is an exact distance (``Domain.exact_distance``: primitives,
+        polygons, their exact set operations), d moves by at most the distance moved
+        (1-Lipschitz), so ``d0 + |p - anchor|`` bounds d from above: a node whose bound is
+        below ``-DEEP * hbar`` is deep without asking the domain, and keeps the bound as its
         ``d0``.  Only the others (a few rows along the boundary) are evaluated, which leaves
         ``_deep`` as the exact test would and spares a detailed outline's distance queries
-        over the whole mesh.
+        over the whole mesh.  A plain signed distance promises no such bound: every node is
+        evaluated.
         """
         if not len(free):
             return
         p = self.p
         bound = self._d0[free] + np.hypot(*(p[free] - self.anchor[free]).T)
+        if not getattr(self.domain, "exact_distance", False):
+            bound[:] = np.nan
         sure = bound < -DEEP * self.hbar[free]  # NaN (no anchor yet) is not
         self._d0[free[sure]] = bound[sure]
         ask = free[~sure]
