@@ -658,13 +658,6 @@ def _slide(
     return moved
 
 
-def _segment_distance(q: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
-    """Distance of each point ``q`` to the segment ``a``-``b`` (row by row)."""
-    ab = b - a
-    t = np.clip(np.einsum("ij,ij->i", q - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0, 1)
-    return np.asarray(np.hypot(*(q - a - t[:, None] * ab).T))
-
-
 def smooth(
     domain: Domain,
     h: SizeFn,
@@ -1341,8 +1334,7 @@ def _optimize(
     moving nodes are independent, a node's star sees no other move, so this is the same
     computation as over the whole mesh.
     """
-    from .kernels.smooth import corners_by_node, star_min
-    from .quality import signed_areas
+    from .kernels.smooth import corners_by_node, restar, star_min, star_targets, star_trial
 
     p = p.copy()
     n = len(p)
@@ -1353,17 +1345,10 @@ def _optimize(
         next_b[walls[:, 0]] = walls[:, 1]
         prev_b[walls[:, 1]] = walls[:, 0]
     # Corners grouped by node (CSR, in increasing corner order): the star of each node.
-    start, by_node = corners_by_node(np.ascontiguousarray(tri, dtype=np.int64), n)
+    t64 = np.ascontiguousarray(tri, dtype=np.int64)
+    start, by_node = corners_by_node(t64, n)
     q = triangle_quality(p, tri)
     star = star_min(start, by_node, q)
-
-    def corners_of(nodes: IntArray) -> tuple[IntArray, IntArray]:
-        """The corners (flat indices into tri) of ``nodes``' stars, and the position in
-        ``nodes`` each belongs to."""
-        cnt = start[nodes + 1] - start[nodes]
-        owner = np.repeat(np.arange(len(nodes)), cnt)
-        offset = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-        return by_node[start[nodes][owner] + offset], owner
 
     for _ in range(OPTIMIZE_SWEEPS):
         cand = (star < OPTIMIZE_Q) & movable
@@ -1375,24 +1360,15 @@ def _optimize(
         rank = np.full(n, -1, dtype=np.intp)
         rank[order] = np.arange(len(order))
         # Conflicts: the sides, between two candidates, of the candidates' triangles.
-        cs, _ = corners_of(order)
-        ct = tri[cs // 3]
+        cnt = start[order + 1] - start[order]
+        offset = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        ct = t64[by_node[np.repeat(start[order], cnt) + offset] // 3]
         bars = np.concatenate([ct[:, [0, 1]], ct[:, [1, 2]], ct[:, [2, 0]]])
         both = cand[bars[:, 0]] & cand[bars[:, 1]]
         ra, rb = rank[bars[both, 0]], rank[bars[both, 1]]
         move = order[lower_wins(np.ones(len(order), dtype=bool), np.minimum(ra, rb), np.maximum(ra, rb))]
-        cs, owner = corners_of(move)
-        t_of, k_of = np.divmod(cs, 3)
-        # The apex of the equilateral triangle on the edge opposite each corner (CCW).
-        pa = p[tri[t_of, (k_of + 1) % 3]]
-        pb = p[tri[t_of, (k_of + 2) % 3]]
-        e = pb - pa
-        apex = 0.5 * (pa + pb) + (np.sqrt(3) / 2) * np.stack([-e[:, 1], e[:, 0]], axis=1)
-        cnt = np.bincount(owner, minlength=len(move))
-        target = np.stack([np.bincount(owner, apex[:, 0], len(move)),
-                           np.bincount(owner, apex[:, 1], len(move))], axis=1) / np.maximum(cnt, 1)[:, None]
+        target = star_targets(p, t64, start, by_node, move)
         on_bnd = on_boundary[move]
-        sub = tri[t_of]
         # Line search: the full step to the target, then shorter ones, until the star improves.
         done = np.zeros(len(move), dtype=bool)
         for frac in (1.0, 0.5, 0.25, 0.125):
@@ -1400,33 +1376,15 @@ def _optimize(
             if on_bnd.any():
                 step[on_bnd] = (domain.project(step[on_bnd]) if project is None
                                 else project(step[on_bnd], move[on_bnd]))
-            # The moving nodes are independent: each star sees its own node's trial place only.
-            old = p[move]
-            p[move] = step
-            q_new = triangle_quality(p, sub)
-            area_new = signed_areas(p, sub)
-            p[move] = old
-            star_new = np.full(len(move), np.inf)
-            np.minimum.at(star_new, owner, q_new)
-            flipped = np.zeros(len(move), dtype=bool)
-            flipped[owner[area_new <= 0]] = True
             inside = domain.sdf(step) < 0
-            pm, pp, pn = p[move], p[prev_b[move]], p[next_b[move]]
-            stray = np.minimum(_segment_distance(step, pp, pm), _segment_distance(step, pm, pn))
-            allow = 2.0 * _segment_distance(pm, pp, pn) + 0.1 * np.hypot(*(step - pm).T)
-            home = ~on_bnd | (stray <= allow * (1 + 1e-9))
-            ok = ~done & (star_new > star[move]) & ~flipped & (inside | on_bnd) & home
+            ok = star_trial(p, t64, start, by_node, move, np.ascontiguousarray(step), star, prev_b,
+                            next_b, on_bnd, inside, done)
             p[move[ok]] = step[ok]
             done |= ok
         if not done.any():
             break
         # q of the triangles that changed, and the stars of their nodes.
-        changed = np.unique(t_of[done[owner]])
-        q[changed] = triangle_quality(p, tri[changed])
-        nodes = np.unique(tri[changed])
-        cs, owner = corners_of(nodes)
-        star[nodes] = np.inf
-        np.minimum.at(star, nodes[owner], q[cs // 3])
+        restar(p, t64, start, by_node, q, star, move[done])
     return p
 
 

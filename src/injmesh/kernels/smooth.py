@@ -539,3 +539,109 @@ def drifted(p, anchor, hbar, tol, tri):  # type: ignore[no-untyped-def]
             rows[r] = t
             r += 1
     return moved, rows[:r]
+
+
+# --- the quality pass (smoothing._optimize) -------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def _q_of(ax, ay, bx, by, cx, cy):  # type: ignore[no-untyped-def]
+    """Eq. (5.1) of one triangle, as kernels.mesh.triangle_quality computes it."""
+    a = math.sqrt((cx - bx) * (cx - bx) + (cy - by) * (cy - by))
+    b = math.sqrt((ax - cx) * (ax - cx) + (ay - cy) * (ay - cy))
+    c = math.sqrt((bx - ax) * (bx - ax) + (by - ay) * (by - ay))
+    den = a * b * c
+    if den == 0.0 or not math.isfinite(den):
+        return 0.0
+    return (b + c - a) * (c + a - b) * (a + b - c) / den
+
+
+@njit(cache=True)
+def star_targets(p, tri, start, corner, move):  # type: ignore[no-untyped-def]
+    """For each node of ``move``: the mean, over its triangles, of the apex of the equilateral
+    triangle on the side opposite it (counter-clockwise triangles)."""
+    h = math.sqrt(3.0) / 2.0
+    out = np.empty((move.shape[0], 2))
+    for a in range(move.shape[0]):
+        i = move[a]
+        sx = 0.0
+        sy = 0.0
+        cnt = start[i + 1] - start[i]
+        for s in range(start[i], start[i + 1]):
+            t = corner[s] // 3
+            k = corner[s] - 3 * t
+            u = tri[t, (k + 1) % 3]
+            v = tri[t, (k + 2) % 3]
+            ex = p[v, 0] - p[u, 0]
+            ey = p[v, 1] - p[u, 1]
+            sx += 0.5 * (p[u, 0] + p[v, 0]) + h * -ey
+            sy += 0.5 * (p[u, 1] + p[v, 1]) + h * ex
+        out[a, 0] = sx / max(cnt, 1)
+        out[a, 1] = sy / max(cnt, 1)
+    return out
+
+
+@njit(cache=True)
+def star_trial(p, tri, start, corner, move, step, star, prev_b, next_b, on_bnd, inside, done):  # type: ignore[no-untyped-def]
+    """Whether each node of ``move`` may go to ``step``: its star's worst q rises, no star
+    triangle turns clockwise or flat, it stays inside (or is a sliding node) and a sliding
+    node stays next to its own two boundary segments.  The nodes of ``move`` share no
+    triangle, so each star is tried alone."""
+    ok = np.zeros(move.shape[0], dtype=np.bool_)
+    for a in range(move.shape[0]):
+        if done[a] or not (inside[a] or on_bnd[a]):
+            continue
+        i = move[a]
+        x = step[a, 0]
+        y = step[a, 1]
+        worst = np.inf
+        flipped = False
+        for s in range(start[i], start[i + 1]):
+            t = corner[s] // 3
+            k = corner[s] - 3 * t
+            u = tri[t, (k + 1) % 3]
+            v = tri[t, (k + 2) % 3]
+            ux, uy, vx, vy = p[u, 0], p[u, 1], p[v, 0], p[v, 1]
+            # Corners in the triangle's own order (i, u, v): the area's sign as signed_areas.
+            if 0.5 * ((ux - x) * (vy - y) - (uy - y) * (vx - x)) <= 0.0:
+                flipped = True
+                break
+            q = _q_of(x, y, ux, uy, vx, vy)
+            if q < worst:
+                worst = q
+        if flipped or not worst > star[i]:
+            continue
+        if on_bnd[a]:
+            pmx, pmy = p[i, 0], p[i, 1]
+            pp = prev_b[i]
+            pn = next_b[i]
+            stray = min(_segment_distance(x, y, p[pp, 0], p[pp, 1], pmx, pmy),
+                        _segment_distance(x, y, pmx, pmy, p[pn, 0], p[pn, 1]))
+            moved = math.sqrt((x - pmx) * (x - pmx) + (y - pmy) * (y - pmy))
+            allow = 2.0 * _segment_distance(pmx, pmy, p[pp, 0], p[pp, 1], p[pn, 0], p[pn, 1]) + 0.1 * moved
+            if not stray <= allow * (1.0 + 1e-9):
+                continue
+        ok[a] = True
+    return ok
+
+
+@njit(cache=True)
+def restar(p, tri, start, corner, q, star, moved):  # type: ignore[no-untyped-def]
+    """After the nodes ``moved`` moved: q of their triangles, and the star minimum of every
+    node of those triangles."""
+    for i in moved:
+        for s in range(start[i], start[i + 1]):
+            t = corner[s] // 3
+            a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+            q[t] = _q_of(p[a, 0], p[a, 1], p[b, 0], p[b, 1], p[c, 0], p[c, 1])
+    for i in moved:
+        for s in range(start[i], start[i + 1]):
+            t = corner[s] // 3
+            for k in range(3):
+                v = tri[t, k]
+                m = np.inf
+                for r in range(start[v], start[v + 1]):
+                    w = q[corner[r] // 3]
+                    if w < m:
+                        m = w
+                star[v] = m
