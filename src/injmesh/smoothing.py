@@ -810,14 +810,14 @@ def _settle(relax: _Relaxation) -> bool:
     # The patch only flipped (its hull stayed): its triangles replace its rows, and the node
     # lists are updated in place from the flips' edge differences, as after a local
     # re-triangulation; a whole-mesh rebuild costs ~1 s at 1e6 nodes.
-    before = relax._t32.copy()
-    relax._t32[rows] = nodes[state.tri].astype(np.int32)
     from .kernels.mesh import renew_neighbours
 
+    old_tri = relax._t32.copy()
+    relax._t32[rows] = nodes[state.tri].astype(np.int32)
     renew_neighbours(relax._t32, relax._nbr, rows)
     relax._vt[relax._t32[rows].ravel()] = np.repeat(rows.astype(np.int32), 3)
     moved = nodes[state._moving]
-    if not relax._flipped(before, moved.astype(np.intp)):
+    if not relax._flipped(old_tri, moved.astype(np.intp)):
         relax._set_triangles(relax._t32.astype(np.intp))
     return False
 
