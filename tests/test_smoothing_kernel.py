@@ -280,8 +280,15 @@ def test_node_lists_follow_flips_in_place() -> None:
     entry pointing at a bar with those two ends."""
     from injmesh.kernels.delaunay import flip_to_delaunay
     from injmesh.kernels.mesh import neighbours
-    from injmesh.kernels.smooth import changed_rows, flip_update, pad_rows
-    from injmesh.smoothing import _KEY, _side_keys
+    from injmesh.kernels.smooth import changed_rows, flip_diff, flip_update, pad_rows
+
+    key = np.int64(2**31)
+
+    def side_keys(tri: np.ndarray) -> np.ndarray:
+        a = tri.astype(np.int64)
+        u = np.concatenate([a[:, 0], a[:, 1], a[:, 2]])
+        v = np.concatenate([a[:, 1], a[:, 2], a[:, 0]])
+        return np.unique(np.minimum(u, v) * key + np.maximum(u, v))
 
     exercised = 0
     for seed in range(60):
@@ -299,11 +306,14 @@ def test_node_lists_follow_flips_in_place() -> None:
         if flip_to_delaunay(q, t32, nbr, np.zeros(t32.shape, dtype=np.uint8), vt) <= 0:
             continue  # an inverted triangle (the caller re-triangulates) or nothing to flip
         changed = changed_rows(t32, before)
-        old_e, new_e = _side_keys(before[changed]), _side_keys(t32[changed])
+        old_e, new_e = side_keys(before[changed]), side_keys(t32[changed])
         removed, added = np.setdiff1d(old_e, new_e), np.setdiff1d(new_e, old_e)
         assert len(removed) == len(added) > 0
-        ids = flip_update(indptr, adj, eid, bars, np.stack([removed // _KEY, removed % _KEY], axis=1),
-                          np.stack([added // _KEY, added % _KEY], axis=1))
+        # The compiled difference is the sets' difference, in the same (sorted) order.
+        removed2, added2 = flip_diff(before, t32, changed)
+        assert np.array_equal(removed2, np.stack([removed // key, removed % key], axis=1))
+        assert np.array_equal(added2, np.stack([added // key, added % key], axis=1))
+        ids = flip_update(indptr, adj, eid, bars, removed2, added2)
         if len(ids) != len(removed):
             continue  # a row ran out of free slots: the caller rebuilds
         exercised += 1

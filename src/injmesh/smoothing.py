@@ -494,16 +494,12 @@ class _Relaxation:
         in place (``kernels.smooth.flip_update``) and renew the nodes they touched; False when
         that cannot be done (a row out of free slots), for a rebuild."""
         changed = self._k.changed_rows(self._t32, before)
-        old_e, new_e = _side_keys(before[changed]), _side_keys(self._t32[changed])
-        removed = np.setdiff1d(old_e, new_e)
-        added = np.setdiff1d(new_e, old_e)
-        if len(removed) != len(added):
+        removed2, added2 = self._k.flip_diff(before, self._t32, changed)
+        if len(removed2) != len(added2):
             return False
-        removed2 = np.stack([removed // _KEY, removed % _KEY], axis=1)
-        added2 = np.stack([added // _KEY, added % _KEY], axis=1)
         indptr, adj, eid, ld = self._csr
         ids = self._k.flip_update(indptr, adj, eid, self._bars, removed2, added2)
-        if len(ids) != len(removed):
+        if len(ids) != len(removed2):
             return False
         constant = getattr(self.h, "constant", None)
         if constant is not None:
@@ -610,17 +606,6 @@ class _Relaxation:
         if not np.array_equal(self.anchor, self.p):
             self.retriangulate(everywhere=True)
         return self.tri
-
-
-def _side_keys(tri: Int32Array) -> NDArray[np.int64]:
-    """The distinct sides of ``tri`` as keys ``i * n + j`` (i < j, n = 2**31)."""
-    a = tri.astype(np.int64)
-    u = np.concatenate([a[:, 0], a[:, 1], a[:, 2]])
-    v = np.concatenate([a[:, 1], a[:, 2], a[:, 0]])
-    return np.unique(np.minimum(u, v) * _KEY + np.maximum(u, v))
-
-
-_KEY = np.int64(2**31)
 
 
 def _slide(

@@ -645,3 +645,50 @@ def restar(p, tri, start, corner, q, star, moved):  # type: ignore[no-untyped-de
                     if w < m:
                         m = w
                 star[v] = m
+
+
+@njit(cache=True)
+def flip_diff(before, after, rows):  # type: ignore[no-untyped-def]
+    """The edges of ``before[rows]`` that ``after[rows]`` no longer has, and the new ones,
+    each as sorted distinct ``(i, j)`` rows (i < j): what flips replaced.  A sort and a merge
+    of the rows' side keys, ``i * 2**31 + j``."""
+    m = rows.shape[0]
+    big = np.int64(1) << np.int64(31)
+    ko = np.empty(3 * m, dtype=np.int64)
+    kn = np.empty(3 * m, dtype=np.int64)
+    for a in range(m):
+        t = rows[a]
+        for k in range(3):
+            u, v = np.int64(before[t, k]), np.int64(before[t, (k + 1) % 3])
+            ko[3 * a + k] = min(u, v) * big + max(u, v)
+            u, v = np.int64(after[t, k]), np.int64(after[t, (k + 1) % 3])
+            kn[3 * a + k] = min(u, v) * big + max(u, v)
+    ko.sort()
+    kn.sort()
+    removed = np.empty((3 * m, 2), dtype=np.int64)
+    added = np.empty((3 * m, 2), dtype=np.int64)
+    nr = 0
+    na = 0
+    i = 0
+    j = 0
+    n = 3 * m
+    while i < n or j < n:
+        if j >= n or (i < n and ko[i] < kn[j]):
+            key = ko[i]
+            removed[nr, 0], removed[nr, 1] = key // big, key % big
+            nr += 1
+            while i < n and ko[i] == key:
+                i += 1
+        elif i >= n or kn[j] < ko[i]:
+            key = kn[j]
+            added[na, 0], added[na, 1] = key // big, key % big
+            na += 1
+            while j < n and kn[j] == key:
+                j += 1
+        else:
+            key = ko[i]
+            while i < n and ko[i] == key:
+                i += 1
+            while j < n and kn[j] == key:
+                j += 1
+    return removed[:nr].copy(), added[:na].copy()
