@@ -824,16 +824,17 @@ def _curve_front(
 
 
 def _lost_interfaces(tri: NDArray[np.intp], seg: NDArray[np.intp]) -> NDArray[np.bool_]:
-    """Interior curve segments that are not edges of two triangles."""
+    """Interior curve segments that are not mesh edges (or lost a node)."""
     if len(seg) == 0:
         return np.zeros(0, dtype=bool)
-    from .quality import unique_edges
+    from .kernels.mesh import edges_present
 
+    gone = np.any(seg < 0, axis=1)
     n = int(max(tri.max(initial=0), seg.max(initial=0))) + 1
-    have = unique_edges(tri)
-    s = np.sort(seg, axis=1)
-    found = np.isin(s[:, 0].astype(np.int64) * n + s[:, 1], have[:, 0].astype(np.int64) * n + have[:, 1])
-    return ~found | np.any(seg < 0, axis=1)
+    found = np.zeros(len(seg), dtype=bool)
+    found[~gone] = edges_present(np.ascontiguousarray(tri, dtype=np.int64),
+                                 np.ascontiguousarray(seg[~gone], dtype=np.int64), n)
+    return ~found | gone
 
 
 def _region_tags(
