@@ -918,7 +918,7 @@ def _repair_rounds(
                                   alive.sum() + np.arange(len(new))])
         try:
             tri = _edited(tri, alive, collapse, split)
-            tri = _made_delaunay(relax.domain, p, tri, relax.walls, relax._patch)
+            tri = _made_delaunay(relax.domain, p, tri, relax.walls, relax._patch, near=touched)
             p, tri, steps, extra = _patch(relax, p, tri, touched.astype(np.int64), iterations)
         except _PatchInverted:
             break
@@ -1075,17 +1075,28 @@ def _neighbours32(t32: NDArray[np.int32], n: int) -> NDArray[np.int32]:
 
 
 def _made_delaunay(domain: Domain, p: FloatArray, tri: IntArray, walls: IntArray,
-                   patch: bool = False) -> IntArray:
+                   patch: bool = False, near: IntArray | None = None) -> IntArray:
     """``tri`` made Delaunay by Lawson flips (exact predicates; edges with one triangle stay),
     or the domain's triangulation from scratch when ``tri`` has an inverted or flat triangle
-    (``_PatchInverted`` instead when ``tri`` is only part of the mesh: ``patch``)."""
-    from .kernels.delaunay import flip_to_delaunay as flip_kernel
+    (``_PatchInverted`` instead when ``tri`` is only part of the mesh: ``patch``).
+
+    With ``near`` (nodes), the flips start from the triangles of those nodes only: the rest
+    of ``tri`` was Delaunay and only they moved or were made (the repair's edits)."""
+    from .kernels.delaunay import flip_rows_to_delaunay, flip_to_delaunay
 
     t32 = np.ascontiguousarray(tri, dtype=np.int32)
     nbr = _neighbours32(t32, len(p))
     vt = np.full(len(p), -1, dtype=np.int32)
     vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
-    if len(t32) == 0 or flip_kernel(p, t32, nbr, np.zeros(t32.shape, dtype=np.uint8), vt) < 0:
+    con = np.zeros(t32.shape, dtype=np.uint8)
+    if near is None:
+        res = flip_to_delaunay(p, t32, nbr, con, vt) if len(t32) else -1
+    else:
+        mark = np.zeros(len(p), dtype=bool)
+        mark[near] = True
+        rows = np.flatnonzero(mark[t32].any(axis=1)).astype(np.int32)
+        res = flip_rows_to_delaunay(p, t32, nbr, con, vt, rows) if len(t32) else -1
+    if res < 0:
         if patch:
             raise _PatchInverted
         return triangulate(domain, p, walls)
