@@ -30,7 +30,8 @@ Two bar forces are used, in this order (``smoothing="hybrid"``, the default):
 4. **Quality pass.**  Free and sliding nodes of triangles with q < ``OPTIMIZE_Q`` move towards
    the mean equilateral apex over their opposite edges when that raises the worst quality of
    their star (line search, connectivity kept).  Each sweep visits only those candidates'
-   stars.
+   stars; targets, trials and star updates are compiled (``kernels.smooth.star_targets``,
+   ``star_trial``, ``restar``), the domain is asked once per trial length.
 
 ``smoothing="attractive"`` runs the paper's force alone to its convergence, to reproduce the
 paper as printed.
@@ -81,7 +82,11 @@ Other choices the paper leaves open:
   - The inside test.  A step is clamped to ``STEP_CAP * hbar`` (on the paper's six cases it
     never binds: the output is identical without it), so between two updates a node moves less
     than ``(RETRIANGULATE + STEP_CAP) * hbar``; free nodes deeper than ``DEEP * hbar`` (twice
-    that, for distances that are not exact) skip ``domain.sdf`` at each step.
+    that, for distances that are not exact) skip ``domain.sdf`` at each step.  Of the others,
+    a node still within half its anchor's depth of its anchor is inside without asking; and
+    when d is an exact distance, ``d0 + drift`` bounds it from above, so the depth of the
+    nodes far inside is not asked again at each connectivity update (a detailed outline's
+    distance queries went from the whole mesh to a few rows along the boundary).
   - The boundary bars' ld for the sliding nodes (see :func:`_slide`).
 
   Measured with ``benchmarks/scale.py`` (CPU seconds of the smoothing stage, 2 cores under
@@ -103,7 +108,9 @@ Other choices the paper leaves open:
   their own sub-mesh (the nodes within ``TAIL_RING`` edges of them; :func:`_settle`) and the
   global steps resume to check: on graded sizes and around regions' curves a few hundred
   nodes near where fronts met kept the whole mesh stepping for hundreds of steps (20:1 graded
-  disc, 3e5 nodes: 12 -> 9 s).
+  disc, 3e5 nodes: 12 -> 9 s).  The sub-mesh only flips, so its triangles are written back
+  over its own rows and the node lists are updated from the flips' edge differences, as
+  after a local re-triangulation (a whole-mesh rebuild cost ~1 s per round at 1e6 nodes).
 * **Stopping condition.**  No node moves more than ``DPTOL * hbar`` in a step, or the cap is
   reached (then ``converged`` is False).  ``DPTOL = 3e-3``: over the paper's six cases at
   h/2, h and 2h (18 meshes) it takes 2329 steps in all against 4089 with 1e-3, with worst
