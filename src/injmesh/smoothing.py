@@ -337,6 +337,8 @@ class _Relaxation:
         self.retriangulations = 0
         #: The last run stopped at its slow tail (see ``run``).
         self.in_tail = False
+        #: final() left ld, hbar and the flags of the old positions (see ``final``).
+        self._stale = False
         #: Where the largest move of the last step was: where a run that stops at its cap is
         #: still moving.
         self.unsettled: tuple[float, float] | None = None
@@ -502,21 +504,11 @@ class _Relaxation:
         """Apply the flips that turned ``before`` into the current triangles to the node lists
         in place (``kernels.smooth.flip_update``) and renew the nodes they touched; False when
         that cannot be done (a row out of free slots), for a rebuild."""
-        changed = self._k.changed_rows(self._t32, before)
-        removed2, added2 = self._k.flip_diff(before, self._t32, changed)
-        if len(removed2) != len(added2):
+        added = self._relink(before)
+        if added is None:
             return False
-        indptr, adj, eid, ld = self._csr
-        ids = self._k.flip_update(indptr, adj, eid, self._bars, removed2, added2)
-        if len(ids) != len(removed2):
-            return False
-        constant = getattr(self.h, "constant", None)
-        if constant is not None:
-            ld[ids] = float(constant)
-        rows = np.asarray(changed, dtype=np.intp)
-        self.tri[rows] = self._t32[rows]
         # The moved nodes and the flips' corners: their bars' ld, hbar, flags and anchors.
-        self._refresh(np.union1d(moved, added2.ravel()))
+        self._refresh(np.union1d(moved, added.ravel()))
         return True
 
     def _refresh(self, nodes: IntArray) -> None:
@@ -560,6 +552,9 @@ class _Relaxation:
         p, n, k = self.p, len(self.p), self._k
         attraction = ATTRACTION if force == "attractive" else 0.0  # Eq. 3.4: f / lc = -0.2 / ld
         self.in_tail = False
+        if self._stale:  # final() updated the lists only: renew what depends on positions
+            self._connect(rebuild=False)
+            self._stale = False
         for _ in range(steps):
             if self.iterations + self.weight > self.cap + 1e-9:
                 return False
@@ -612,9 +607,48 @@ class _Relaxation:
         return False
 
     def final(self) -> IntArray:
-        if not np.array_equal(self.anchor, self.p):
+        """The triangles made Delaunay for the current positions, and the node lists (CSR)
+        updated to them; what depends on positions (ld, hbar, flags) is renewed only if the
+        relaxation steps again (``_stale``): after the last step nothing reads it, and at a
+        million nodes renewing it for every node that moved a little cost ~1 s."""
+        if np.array_equal(self.anchor, self.p):
+            return self.tri
+        if self._active is not None:
             self.retriangulate(everywhere=True)
+            return self.tri
+        before = self._t32.copy()
+        res = self._k_flip(self.p, self._t32, self._nbr, self._con, self._vt)
+        if res < 0:
+            if self._patch:
+                raise _PatchInverted
+            self._set_triangles(triangulate(self.domain, self.p, self.walls))
+            return self.tri
+        if res > 0 and self._relink(before) is None:
+            self._connect(rebuild=True)
+            return self.tri
+        self.anchor = self.p.copy()
+        self._stale = True
         return self.tri
+
+    def _relink(self, before: Int32Array) -> NDArray[np.int64] | None:
+        """The node lists, bars and ``tri`` follow the flips that turned ``before`` into the
+        current triangles (``kernels.smooth.flip_update``, in place); a constant h's ld of
+        the new bars too.  Returns the new edges ``(k, 2)``, or None when that cannot be done
+        (a row out of free slots), for a rebuild."""
+        changed = self._k.changed_rows(self._t32, before)
+        removed, added = self._k.flip_diff(before, self._t32, changed)
+        if len(removed) != len(added):
+            return None
+        indptr, adj, eid, ld = self._csr
+        ids = self._k.flip_update(indptr, adj, eid, self._bars, removed, added)
+        if len(ids) != len(removed):
+            return None
+        constant = getattr(self.h, "constant", None)
+        if constant is not None:
+            ld[ids] = float(constant)
+        rows = np.asarray(changed, dtype=np.intp)
+        self.tri[rows] = self._t32[rows]
+        return np.asarray(added)
 
 
 def _slide(
