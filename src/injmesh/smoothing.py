@@ -835,6 +835,11 @@ def _settle(relax: _Relaxation) -> bool:
     relax.iterations += state.iterations - relax.iterations
     relax.retriangulations += state.retriangulations
     relax.p[nodes] = state.p
+    if len(state.tri) != len(rows):  # flips keep the count; anything else: rebuild
+        in_patch = np.zeros(len(relax.tri), dtype=bool)
+        in_patch[rows] = True
+        relax._set_triangles(np.concatenate([relax.tri[~in_patch], nodes[state.tri]]))
+        return False
     # The patch only flipped (its hull stayed): its triangles replace its rows, and the node
     # lists are updated in place from the flips' edge differences, as after a local
     # re-triangulation; a whole-mesh rebuild costs ~1 s at 1e6 nodes.
