@@ -23,7 +23,9 @@ class Progress:
     total : int or None
         The stage's cap on ``step``, when known.
     info : dict
-        Stage-specific figures (``nodes``, ``max_move``, ...).
+        Stage-specific figures: ``nodes``; for smoothing ``max_move`` (largest move of the
+        step over hbar), ``moving`` (nodes that moved more than the stopping tolerance) and
+        ``force``; for injection ``front``.
     """
 
     stage: str

@@ -596,7 +596,7 @@ class _Relaxation:
             at = max(at, 0)
             self.unsettled = (float(p[at, 0]), float(p[at, 1]))
             report(self.callback, "smoothing", math.ceil(self.iterations), self.cap, nodes=n, max_move=worst,
-                   force=force)
+                   force=force, moving=count)
             if worst < DPTOL:
                 return True
             if count <= tail and self.iterations >= TAIL_AFTER:
