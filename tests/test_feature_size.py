@@ -303,3 +303,22 @@ def test_paper_cases_are_claimed_thick(name: str) -> None:
 
     case = CASES[name]
     assert _claims_thick(case.geometry, case.size)
+
+
+def test_thin_feature_size_skips_only_parts_that_are_thick_for_h() -> None:
+    """A part no two of whose walls face each other within a few h needs no feature grid
+    (None); a thin part gets the grid, and it agrees with feature_size; a variable h is
+    bounded by its sample."""
+    from injmesh.sizing.features import thin_feature_size
+
+    disc = Circle((0.0, 0.0), 1.0)
+    assert thin_feature_size(disc, 0.1, 2.0) is None
+    assert thin_feature_size(disc, lambda p: 0.05 + 0.05 * np.hypot(p[:, 0], p[:, 1]), 2.0) is None
+    # The same disc for an h of its own size: thinner than two layers.
+    fs = thin_feature_size(disc, 1.5, 2.0)
+    assert isinstance(fs, GriddedSize)
+    centre = np.array([[0.0, 0.0]])
+    assert abs(fs(centre)[0] - feature_size(disc)(centre)[0]) < 1e-12
+    strip = Rectangle((0.0, 0.0), (4.0, 0.2))
+    assert isinstance(thin_feature_size(strip, 0.1, 2.0), GriddedSize)
+    assert thin_feature_size(strip, 0.01, 2.0) is None
