@@ -56,3 +56,16 @@ def test_inside_test_answers_as_the_sdf(domain) -> None:
         return
     assert test is not None
     assert np.array_equal(test(p), expected)
+
+
+@pytest.mark.parametrize("domain", [Rectangle((0.0, 0.0), (1.0, 1.0)), Rectangle((-3.0, 2.0), (5.0, 2.5)),
+                                    Circle((0.3, -0.2), 0.7)])
+def test_closed_form_grids_equal_the_pointwise_sdf(domain: Circle | Rectangle) -> None:
+    """A circle's or a rectangle's d on a grid comes from its rows' and columns' offsets by
+    broadcasting: the very values of its point-wise sdf."""
+    x0, y0, x1, y1 = domain.bbox
+    x = np.linspace(x0 - 0.3, x1 + 0.2, 157)
+    y = np.linspace(y0 - 0.1, y1 + 0.4, 131)
+    X, Y = np.meshgrid(x, y)
+    expected = domain.sdf(np.stack([X.ravel(), Y.ravel()], axis=1)).reshape(X.shape)
+    assert np.array_equal(_sdf_on_grid(domain, x, y, float(x[1] - x[0])), expected)
