@@ -144,6 +144,36 @@ def test_smooth_keeps_free_nodes_inside_with_deep_skip() -> None:
     assert square.sdf(r.points).max() <= 1e-12
 
 
+def test_depth_flags_from_the_lipschitz_bound_equal_the_exact_ones() -> None:
+    """For an exact distance, deep flags come from ``d0 + drift`` where that bound settles
+    them: after many connectivity updates they equal the test on d itself at the anchors, and
+    d0 is d there for every node that is not deep, an upper bound of it for the others."""
+    from injmesh.smoothing import DEEP, _Relaxation
+    from injmesh.triangulation import delaunay as tri_of
+
+    domain = Rectangle((0, 0), (1, 1)) - Rectangle((0.3, 0.3), (0.6, 0.5))
+    assert domain.exact_distance
+    rng = np.random.default_rng(7)
+    inner = rng.random((900, 2))
+    inner = inner[domain.sdf(inner) < -0.01]
+    corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.3, 0.3], [0.6, 0.3], [0.6, 0.5], [0.3, 0.5]],
+                       dtype=float)
+    p = np.concatenate([corners, inner])
+    t = tri_of(p)
+    t = t[domain.sdf(p[t].mean(axis=1)) < 0]
+    relax = _Relaxation(domain, lambda x: np.full(len(x), 0.05), p, 8, np.zeros((0, 3), dtype=np.intp),
+                        np.zeros((0, 2), dtype=np.intp), None, 1000, tri=t)
+    relax.run("spring", 60)
+    assert relax.retriangulations > 3
+    f = relax._free
+    exact = domain.sdf(relax.anchor[f])
+    assert np.array_equal(relax._deep[f], exact < -DEEP * relax.hbar[f])
+    shallow = ~relax._deep[f]
+    assert np.array_equal(relax._d0[f][shallow], exact[shallow])
+    assert (relax._d0[f] >= exact - 1e-12).all()
+    assert domain.sdf(relax.p).max() <= 1e-12
+
+
 def test_repair_edits_keep_a_valid_triangulation() -> None:
     """Split an edge and collapse another on the triangle arrays, then Lawson flips: a valid
     Delaunay triangulation of the new nodes, same area, every node used."""
