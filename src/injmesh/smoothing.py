@@ -83,7 +83,8 @@ Other choices the paper leaves open:
     never binds: the output is identical without it), so between two updates a node moves less
     than ``(RETRIANGULATE + STEP_CAP) * hbar``; free nodes deeper than ``DEEP * hbar`` (twice
     that, for distances that are not exact) skip ``domain.sdf`` at each step.  Of the others,
-    a node still within half its anchor's depth of its anchor is inside without asking; and
+    a node still within its anchor's depth of its anchor (half of it when d is not an exact
+    distance) is inside without asking; and
     when d is an exact distance, ``d0 + drift`` bounds it from above, so the depth of the
     nodes far inside is not asked again at each connectivity update (a detailed outline's
     distance queries went from the whole mesh to a few rows along the boundary).
@@ -367,6 +368,8 @@ class _Relaxation:
         self._seen = np.zeros(0, dtype=np.bool_)
         #: d at each free node's anchor, or an upper bound of it for deep nodes (0 elsewhere).
         self._d0 = np.zeros(0)
+        #: The fraction of its depth a node may move and be inside without asking the domain.
+        self._reach = 1.0 - 1e-9 if getattr(domain, "exact_distance", False) is True else 0.5
         self._set_triangles(triangulate(domain, p, walls) if tri is None else tri)
 
     def _projector(self, nodes: IntArray) -> Callable[[FloatArray], FloatArray]:
@@ -567,10 +570,10 @@ class _Relaxation:
             if c:
                 # Nodes near the boundary: a step that would leave the domain is not taken.
                 idx, new = self._near[:c], self._cand[:c]
-                # A node still within half its anchor's depth of its anchor is inside (the
-                # factor 2 DEEP allows for inexact signed distances): the sdf is asked only
-                # for the few that went further, the costly call on a detailed outline.
-                ok = np.hypot(*(new - self.anchor[idx]).T) < -0.5 * self._d0[idx]
+                # A node still within its anchor's depth of its anchor is inside (half of it
+                # for a d that is not an exact distance: the factor 2 DEEP allows): the sdf is
+                # asked only for the few that went further, the costly call on an outline.
+                ok = np.hypot(*(new - self.anchor[idx]).T) < -self._reach * self._d0[idx]
                 rest = np.flatnonzero(~ok)
                 if len(rest):
                     ok[rest] = ~(self.domain.sdf(new[rest]) > 0)
