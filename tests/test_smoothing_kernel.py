@@ -166,12 +166,21 @@ def test_depth_flags_from_the_lipschitz_bound_equal_the_exact_ones() -> None:
     relax.run("spring", 60)
     assert relax.retriangulations > 3
     f = relax._free
-    exact = domain.sdf(relax.anchor[f])
-    assert np.array_equal(relax._deep[f], exact < -DEEP * relax.hbar[f])
-    shallow = ~relax._deep[f]
-    assert np.array_equal(relax._d0[f][shallow], exact[shallow])
-    assert (relax._d0[f] >= exact - 1e-12).all()
-    assert domain.sdf(relax.p).max() <= 1e-12
+
+    def check() -> None:
+        exact = domain.sdf(relax.anchor[f])
+        assert np.array_equal(relax._deep[f], exact < -DEEP * relax.hbar[f])
+        shallow = ~relax._deep[f]
+        assert np.array_equal(relax._d0[f][shallow], exact[shallow])
+        assert (relax._d0[f] >= exact - 1e-12).all()
+        assert domain.sdf(relax.p).max() <= 1e-12
+
+    check()
+    # final() moves the anchors without renewing the flags; stepping again renews them.
+    relax.p[f] += rng.normal(0.0, 1e-3, (len(f), 2)) * (relax._d0[f] < -0.01)[:, None]
+    relax.final()
+    relax.run("spring", 5)
+    check()
 
 
 def test_repair_edits_keep_a_valid_triangulation() -> None:

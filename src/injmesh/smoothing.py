@@ -629,6 +629,9 @@ class _Relaxation:
         if res > 0 and self._relink(before) is None:
             self._connect(rebuild=True)
             return self.tri
+        # The anchors move to the positions: d0 + drift stays an upper bound of d there.
+        f = self._free
+        self._d0[f] += np.hypot(*(self.p[f] - self.anchor[f]).T)
         self.anchor = self.p.copy()
         self._stale = True
         return self.tri
