@@ -245,3 +245,23 @@ def test_sharp_tip_strip_is_well_shaped(angle: float) -> None:
     best = 8 * math.sin(a / 2) * math.sin((math.pi - a) / 4) ** 2
     assert at_tip.sum() == 1 and q[at_tip][0] > 0.9 * best
     assert q[~at_tip].min() > 0.6
+
+
+@pytest.mark.parametrize("half_width", [0.03, 0.08])
+def test_a_narrow_slit_of_outside_does_not_crowd_its_walls(half_width: float) -> None:
+    """A slit of non-domain a few degrees wide (a land spike in the sea): its two walls see
+    each other across the outside, where no triangle is kept, so Step 1 does not split their
+    segments for it.  Splitting did, in a cascade towards the tip: 38 boundary nodes within
+    1.5 h of it and slivers of q 0.08 fanning to them."""
+    from injmesh.sizing import as_size_function
+
+    a = half_width
+    slit = Polygon([(0, 0), (1, 0), (1, 0.5 - a), (0.3, 0.5), (0.93, 0.5 + a), (1, 0.5 + a), (1, 1), (0, 1)])
+    bnd = mesh_boundary(slit, as_size_function(0.1), np.zeros((0, 2)), max_nodes=10**6)
+    near_tip = np.hypot(*(bnd.points - [0.3, 0.5]).T) < 0.15
+    assert near_tip.sum() <= 5
+    from injmesh import generate
+
+    mesh = generate(slit, 0.1)
+    assert mesh.stats.valid
+    assert mesh.quality().min() > 0.6
