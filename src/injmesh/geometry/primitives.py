@@ -456,10 +456,10 @@ def _containment(local: list[FloatArray]) -> NDArray[np.bool_]:
 #: A place where the outline comes within ``min_feature`` of itself is a *pinch* when the part
 #: beyond it is not a wedge: the boundary round that part is at least PINCH_DETOUR times the
 #: gap (as :data:`injmesh.sizing.features.GAP_DETOUR`), and the part is on average at least
-#: PINCH_WIDENS times wider than the gap (2 area / boundary length; a sharp wedge, narrowing
+#: PINCH_WIDENS times as wide as the gap (2 area / boundary length; a sharp wedge, narrowing
 #: steadily to its tip, is half as wide as its base on average).
 PINCH_DETOUR = 20.0
-PINCH_WIDENS = 2.0
+PINCH_WIDENS = 1.0
 #: Rounds of pinching (pinches inside a part cut off in the same round wait for the next).
 PINCH_ROUNDS = 32
 
