@@ -191,8 +191,8 @@ class Polygon(BRep):
         dropped, and a hole that collapses is dropped.  The counts also include the repeated
         vertices dropped and the rings reoriented when the polygon was built.
 
-        Then the *pinches*: wherever the outline comes within ``min_feature`` of itself
-        (default ``tolerance``; 0 turns this off) -- a neck of the domain narrower than that,
+        Then, with ``min_feature``, the *pinches*: wherever the outline comes within
+        ``min_feature`` of itself -- a neck of the domain narrower than that,
         or a gap of its outside (an inlet's mouth, an island or a hole almost touching another
         ring) -- the outline is cut there and the smaller part beyond (by area) is dropped: a
         lobe or an island removed, a pocket or a hole filled.  On one ring the cut joins the
@@ -206,7 +206,7 @@ class Polygon(BRep):
         tolerance : float
             Vertices closer than this merge; spikes thinner than this are dropped.
         min_feature : float, optional
-            Pinches narrower than this are cut (default ``tolerance``).
+            Pinches narrower than this are cut (default: none is; 0 likewise).
         max_area : float, optional
             A part larger than this is not dropped: :class:`GeometryError` (default: no limit).
 
@@ -234,7 +234,7 @@ class Polygon(BRep):
         """
         if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance >= 0):
             raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
-        width = float(tolerance) if min_feature is None else min_feature
+        width = 0.0 if min_feature is None else min_feature
         if not (isinstance(width, (int, float)) and math.isfinite(width) and width >= 0):
             raise ValueError(f"min_feature must be a finite number >= 0, got {min_feature!r}")
         limit = math.inf if max_area is None else float(max_area)
