@@ -178,15 +178,16 @@ def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity) -> FloatArray:
     the few nodes over it, swung at its step cap for 1000 steps.  After the layers, for lattice
     spacings s from the largest h admitted down by halvings: a cell of side s is *deep empty*
     when it and its eight neighbours hold no node; the equilateral lattice of spacing s over
-    the empty cells next to deep-empty ones is offered, in row order, where ``h >= FILL_H * s``,
-    to the same admission test as injected nodes (inside, clear of the boundary and of every
+    the empty cells next to deep-empty ones is offered, in row order, where h is between
+    ``FILL_H * s`` and twice that (any larger h at the first level), to the same admission test as injected nodes (inside, clear of the boundary and of every
     node by ``MERGE * h``).  Gaps the fronts leave where they meet are narrower than two h and
     hold no deep-empty cell, so a domain the fronts fill gets nothing here.
     """
     x0, y0, x1, y1 = (float(v) for v in domain.bbox)
     s = grid.h_max
     out: list[FloatArray] = []
-    for _ in range(FILL_LEVELS + 1):
+    for level in range(FILL_LEVELS + 1):
+        first = level == 0
         if not (s > 0 and math.isfinite(s)) or s < grid.h_min:
             break
         nx, ny = int((x1 - x0) / s) + 1, int((y1 - y0) / s) + 1
@@ -214,7 +215,7 @@ def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity) -> FloatArray:
             ys = y0 + rows * HEIGHT * s
             cy = np.floor((ys - y0) / s).astype(np.int64)
             cand = []
-            for r, y, c in zip(rows.tolist(), ys.tolist(), cy.tolist()):
+            for r, y, c in zip(rows.tolist(), ys.tolist(), cy.tolist(), strict=True):
                 if c >= ny or not cells[c].any():
                     continue
                 xs = x0 + (np.arange(nx + 1) + 0.5 * (r % 2)) * s
@@ -229,7 +230,9 @@ def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity) -> FloatArray:
                 hq = np.ones(len(q))
                 if inside.any():
                     hq[inside] = h(q[inside])
-                inside &= hq >= FILL_H * s
+                # This level's spacing suits h in [FILL_H s, 2 FILL_H s); the first level also
+                # takes any larger h (h there is above every h admitted so far).
+                inside &= (hq >= FILL_H * s) & ((hq < 2.0 * FILL_H * s) | first)
                 keep = grid.admit(q, hq, inside)
                 if keep.any():
                     out.append(q[keep])

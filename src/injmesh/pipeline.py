@@ -435,7 +435,9 @@ def _capped(h: Callable[[FloatArray], FloatArray], cap: float) -> Callable[[Floa
     return capped
 
 
-def _clean(domain: Domain, h: SizeFunction, min_feature: float | None = None) -> tuple[Domain, dict[str, int]]:
+def _clean(
+    domain: Domain, h: SizeFunction, min_feature: float | None = None
+) -> tuple[Domain, dict[str, int]]:
     """The domain cleaned at the scale of h: vertices closer than ``CLEAN * h_min`` merged,
     zero-length edges and spikes dropped, parts beyond pinches narrower than ``min_feature``
     dropped (``Domain.cleaned``), and what changed.
@@ -480,7 +482,8 @@ def _clean(domain: Domain, h: SizeFunction, min_feature: float | None = None) ->
                     ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in changes.items()))
     parts = getattr(cleaned, "dropped_parts", ())
     if parts:
-        shown = "; ".join(f"({x:.6g}, {y:.6g}): gap {g:.2g}, area {a:.2g}" for x, y, g, a in parts[:MAX_LISTED])
+        shown = "; ".join(f"({x:.6g}, {y:.6g}): gap {g:.2g}, area {a:.2g}"
+                          for x, y, g, a in parts[:MAX_LISTED])
         more = f"; ... ({len(parts)} in all)" if len(parts) > MAX_LISTED else ""
         message = (f"{len(parts)} part(s) of the outline beyond pinches narrower than min_feature = "
                    f"{width:.3g} were dropped (lobes removed, pockets filled) at {shown}{more}")

@@ -258,7 +258,8 @@ class Polygon(BRep):
                 # The cut leaves a vertex at each pinch: merge and drop spikes round it again.
                 rings, names = self._clean_rings(pinched, [f"ring {k}" for k in range(len(pinched))],
                                                  tolerance, report)
-        if report["merged_vertices"] + report["spikes"] + report["dropped_rings"] + report["pinched_parts"] == 0:
+        changed = ("merged_vertices", "spikes", "dropped_rings", "pinched_parts")
+        if not any(report[k] for k in changed):
             self.dropped_parts = ()
             return self, report
         if not rings:
@@ -463,6 +464,8 @@ PINCH_WIDENS = 1.0
 #: Rounds of pinching (pinches inside a part cut off in the same round wait for the next).
 PINCH_ROUNDS = 32
 
+_Place = tuple[float, float, float, float]
+
 
 def _segment_gaps(
     a: FloatArray, b: FloatArray, i: NDArray[np.int64], j: NDArray[np.int64]
@@ -503,7 +506,7 @@ def _segment_gaps(
 
 def _pinch_rings(
     local: list[FloatArray], width: float, max_area: float
-) -> tuple[list[FloatArray], list[tuple[float, float, float, float]], list[tuple[float, float, float, float]]]:
+) -> tuple[list[FloatArray], list[_Place], list[_Place]]:
     """Cut the rings where they come within ``width`` of themselves or of each other, and drop
     the smaller part beyond each such pinch (see :meth:`Polygon.cleaned`).
 
@@ -519,7 +522,7 @@ def _pinch_rings(
         a, b, ring, nxt = _ring_edges(rings)
         lo, hi = np.minimum(a, b), np.maximum(a, b)
         tree = build_bvh(lo, hi)
-        pairs = box_pairs(lo, hi, *tree, float(width))
+        pairs = box_pairs(lo, hi, *tree, float(width))  # type: ignore[call-arg]
         i, j = pairs[:, 0], pairs[:, 1]
         keep = (i < j) & (nxt[i] != j) & (nxt[j] != i)
         i, j = i[keep], j[keep]
@@ -558,7 +561,8 @@ def _pinch_rings(
         other = np.where(small_j, ring[j], ring[i])
         part_area = np.where(same, part_area, np.abs(ring_area[other]))
         part_arc = np.where(same, part_arc, ring_len[other])
-        pinch = ~same | ((part_arc >= PINCH_DETOUR * gap) & (2.0 * part_area >= PINCH_WIDENS * gap * part_arc))
+        fat = 2.0 * part_area >= PINCH_WIDENS * gap * part_arc
+        pinch = ~same | ((part_arc >= PINCH_DETOUR * gap) & fat)
         if not pinch.any():
             break
         sel = np.flatnonzero(pinch)
@@ -584,7 +588,10 @@ def _pinch_rings(
             k = int(ring[ii])
             if gone[k]:
                 continue
-            span = np.arange(ii, jj + 1) if inner[s] else np.r_[np.arange(jj, start[k + 1]), np.arange(start[k], ii + 1)]
+            if inner[s]:
+                span = np.arange(ii, jj + 1)
+            else:
+                span = np.r_[np.arange(jj, start[k + 1]), np.arange(start[k], ii + 1)]
             if taken[span].any():
                 continue
             taken[span] = True
