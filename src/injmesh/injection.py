@@ -179,9 +179,10 @@ def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity) -> FloatArray:
     spacings s from the largest h admitted down by halvings: a cell of side s is *deep empty*
     when it and its eight neighbours hold no node; the equilateral lattice of spacing s over
     the empty cells next to deep-empty ones is offered, in row order, where h is between
-    ``FILL_H * s`` and twice that (any larger h at the first level), to the same admission test as injected nodes (inside, clear of the boundary and of every
-    node by ``MERGE * h``).  Gaps the fronts leave where they meet are narrower than two h and
-    hold no deep-empty cell, so a domain the fronts fill gets nothing here.
+    ``FILL_H * s`` and twice that (any larger h at the first level), to the same admission
+    test as injected nodes (inside, clear of the boundary and of every node by ``MERGE * h``).
+    Gaps the fronts leave where they meet are narrower than two h and hold no deep-empty cell,
+    so a domain the fronts fill gets nothing here.
     """
     x0, y0, x1, y1 = (float(v) for v in domain.bbox)
     s = grid.h_max
