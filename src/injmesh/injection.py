@@ -165,8 +165,11 @@ def inject_nodes(
 #: FILL_LEVELS halvings (not below the smallest h), and at most FILL_CELLS cells per level.
 FILL_LEVELS = 5
 FILL_CELLS = 1 << 22
-#: A lattice point is a candidate where h is at least FILL_H times the lattice spacing.
+#: A lattice point is a candidate where h is at least FILL_H times the lattice spacing (and
+#: below twice that after the first level), in cells whose nearest node has h below FILL_NEAR
+#: times that.
 FILL_H = 0.75
+FILL_NEAR = 4.0
 
 
 def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity) -> FloatArray:
@@ -211,6 +214,16 @@ def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity) -> FloatArray:
                 for dx in (-1, 0, 1):
                     grown[1 + dy: ny + 1 + dy, 1 + dx: nx + 1 + dx] |= deep
             cells = grown[1:-1, 1:-1] & ~occupied[1:-1, 1:-1]
+            if not first:
+                # Only where the nearest node's h suits this spacing: a coarser level has
+                # already offered its lattice where h is larger (most of a fine level's empty
+                # cells, between nodes far apart), and sdf and h need not be asked there.
+                from scipy import ndimage
+
+                cell_h = np.zeros((ny, nx))
+                cell_h[iy[ok], ix[ok]] = grid.hs[: grid.n][ok]
+                _, (jj, ii) = ndimage.distance_transform_edt(~occupied[1:-1, 1:-1], return_indices=True)
+                cells &= cell_h[jj, ii] < FILL_NEAR * FILL_H * s
             # The equilateral lattice of spacing s, rows sqrt(3)/2 s apart, odd rows shifted.
             rows = np.arange(int((y1 - y0) / (HEIGHT * s)) + 1)
             ys = y0 + rows * HEIGHT * s
