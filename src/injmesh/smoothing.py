@@ -415,11 +415,22 @@ class _Relaxation:
             b, bp, bn = self._sl.T
             self._ld_slide = (self.h(0.5 * (p[b] + p[bp])), self.h(0.5 * (p[b] + p[bn])))
         deep = np.zeros(len(p), dtype=np.bool_)
+        self._clear = np.zeros(len(p))
         if len(self._free):
-            deep[self._free] = self.domain.sdf(p[self._free]) < -DEEP * hbar[self._free]
+            d = self.domain.sdf(p[self._free])
+            deep[self._free] = d < -DEEP * hbar[self._free]
+            self._set_clear(self._free, d)
         self._deep = deep
         self.anchor = p.copy()
         self.retriangulations += 1
+
+    def _set_clear(self, nodes: IntArray, d: FloatArray) -> None:
+        """How far ``nodes`` may move from their anchors and stay inside: ``-d`` (a hair less)
+        where d is a distance (or a lower bound of it, as CSG's min/max), else nothing.  On a
+        detailed outline most nodes are near the boundary, and the inside test of their steps
+        was the larger part of a step (the 20,000-vertex outline: 6 of 28 s)."""
+        if getattr(self.domain, "exact_distance", False) is True:
+            self._clear[nodes] = np.maximum(-d, 0.0) * (1.0 - 1e-9)
 
     def retriangulate(self, everywhere: bool = False) -> None:
         """Make the triangulation Delaunay again after the nodes moved (see the module doc).
@@ -507,7 +518,9 @@ class _Relaxation:
         k.stable_scale(p, near, indptr, self._csr[1], eid, ld, DT * self.hbar, STABLE_GAIN, self._damp)
         free = nodes[self._is_free[nodes]]
         if len(free):
-            self._deep[free] = self.domain.sdf(p[free]) < -DEEP * self.hbar[free]
+            d = self.domain.sdf(p[free])
+            self._deep[free] = d < -DEEP * self.hbar[free]
+            self._set_clear(free, d)
         self.anchor[nodes] = p[nodes]
         self.retriangulations += 1
 
@@ -540,7 +553,10 @@ class _Relaxation:
             if c:
                 # Nodes near the boundary: a step that would leave the domain is not taken.
                 idx, new = self._near[:c], self._cand[:c]
-                ok = ~(self.domain.sdf(new) > 0)
+                # A step shorter than the anchor's distance to the boundary stays inside.
+                ok = np.hypot(*(new - self.anchor[idx]).T) < self._clear[idx]
+                if not ok.all():
+                    ok[~ok] = ~(self.domain.sdf(new[~ok]) > 0)
                 idx, new = idx[ok], new[ok]
                 if len(idx):
                     hb = self.hbar[idx]
