@@ -292,7 +292,9 @@ def cleaned_shape(domain: Any, size: Any, shape: Any, h0: float) -> tuple[Any, f
     from injmesh.pipeline import _clean
     from injmesh.sizing import as_size_function
 
-    cleaned, _ = _clean(domain, as_size_function(size))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # reported already, by the run being checked
+        cleaned, _ = _clean(domain, as_size_function(size))
     rings = [np.asarray(r, dtype=float) for r in cleaned.rings]
     raw = shapely.MultiLineString([np.vstack([r, r[:1]]) for r in shape.rings])
     new = shapely.MultiLineString([np.vstack([r, r[:1]]) for r in rings])

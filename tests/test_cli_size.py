@@ -160,3 +160,25 @@ def test_help_describes_the_size_flags(capsys):
     assert status == 0
     for flag in ("--nodes", "--gradation", "--feature-layers", ".npz"):
         assert flag in text
+
+
+def test_min_feature(tmp_path, capsys):
+    # The unit square with a small square lobe on a neck 1e-4 wide (h/1000).
+    lobe = ("POLYGON ((0 0, 1 0, 1 0.5, 1.1 0.5, 1.1 0.475, 1.15 0.475, 1.15 0.525, 1.1 0.525, "
+            "1.1 0.5001, 1 0.5001, 1 1, 0 1, 0 0))")
+    out = tmp_path / "m.npz"
+    status, _, err = run(capsys, "generate", lobe, "--size", 0.1, "-o", out)
+    assert status == 0 and "(1, 0.50005)" in err, err  # dropped by default, and said where
+    assert injmesh.read(out).points[:, 0].max() <= 1 + 1e-9
+    # A lobe larger than h^2 on the same neck: refused by default, naming the place; dropped
+    # when --min-feature is given.
+    big = ("POLYGON ((0 0, 1 0, 1 0.5, 1.1 0.5, 1.1 0.4, 1.3 0.4, 1.3 0.6, 1.1 0.6, 1.1 0.5001, "
+           "1 0.5001, 1 1, 0 1, 0 0))")
+    status, _, err = run(capsys, "generate", big, "--size", 0.1, "-o", out)
+    assert status in (1, 2) and "(1, 0.50005)" in err and "min_feature" in err, err
+    status, _, err = run(capsys, "generate", big, "--size", 0.1, "--min-feature", 1e-3, "-o", out)
+    assert status == 0 and "(1, 0.50005)" in err, err
+    assert injmesh.read(out).points[:, 0].max() <= 1 + 1e-9
+    status, _, err = run(capsys, "generate", lobe, "--min-feature", 1e-3, "--method", "distmesh",
+                         "--size", 0.1, "-o", out)
+    assert status in (1, 2) and "--min-feature" in err, err

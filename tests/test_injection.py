@@ -130,3 +130,27 @@ def test_injection_reaches_where_h_is_smallest(h_min: float, grade: float) -> No
     gap, _ = cKDTree(nodes).query(q)
     assert np.max(gap / h(q)) < 1.0
     _check_spacing(h, b.points, inj)
+
+
+def test_gaps_the_fronts_left_are_filled() -> None:
+    from injmesh.injection import _fill_gaps, _Proximity
+
+    # Only the boundary placed (as if every front had died at once): the fill covers the
+    # interior at about h, keeping clear of the boundary and of each other.
+    dom = Rectangle((0, 0), (2, 1))
+    h = as_size_function(0.1)
+    b = mesh_boundary(dom, h, np.empty((0, 2)), max_nodes=BUDGET)
+    grid = _Proximity(dom, b, b.points, h(b.points), 0.1)
+    filled = _fill_gaps(dom, h, grid)
+    xs, ys = np.meshgrid(np.linspace(0.1, 1.9, 37), np.linspace(0.1, 0.9, 17))
+    probe = np.stack([xs.ravel(), ys.ravel()], axis=1)
+    assert cKDTree(np.concatenate([b.points, filled])).query(probe)[0].max() < 0.1
+    _check_spacing(h, b.points, filled)
+    assert len(filled) == pytest.approx(2 / (np.sqrt(3) / 2 * 0.01), rel=0.3)
+    # After a full injection there is nothing left to fill.
+    dom2 = Circle((0, 0), 1)
+    b2 = mesh_boundary(dom2, h, np.empty((0, 2)), max_nodes=BUDGET)
+    injected = inject_nodes(dom2, h, b2, b2.points, max_nodes=BUDGET)
+    grid2 = _Proximity(dom2, b2, np.concatenate([b2.points, injected]),
+                       h(np.concatenate([b2.points, injected])), 0.1)
+    assert len(_fill_gaps(dom2, h, grid2)) == 0

@@ -40,7 +40,7 @@ def test_size_scattered(tmp_path, capsys):
 def test_gradation(tmp_path, capsys):
     figures = load("gradation").main(tmp_path)
     assert (tmp_path / "gradation.png").stat().st_size > 10_000
-    assert figures["q_min after"] >= 0.7 > 0.1 > figures["q_min before"]
+    assert figures["q_min after"] >= 0.7 > 0.2 > figures["q_min before"]
 
 
 def test_target_nodes(tmp_path, capsys):

@@ -375,6 +375,11 @@ def build_parser() -> argparse.ArgumentParser:
     gen.add_argument("--feature-layers", type=_layers, metavar="K",
                      help="at least K elements across thin parts (channels, necks, spikes): h "
                      "<= local thickness / K (default 2; 0: off)")
+    gen.add_argument("--min-feature", type=_rate, metavar="W",
+                     help="cut the outline where it comes within W of itself and drop the smaller "
+                     "part beyond (a lobe on a neck, a pocket behind a narrow mouth), with a "
+                     "warning naming each place (default 1 %% of the smallest h, and only parts "
+                     "smaller than h^2; 0: off)")
     gen.add_argument("--method", choices=("injection", "distmesh"), default="injection",
                      help="the paper's algorithm (default) or the original DistMesh")
     gen.add_argument("--regions", metavar="FILE",
@@ -525,7 +530,8 @@ def _generate(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
         raise ValueError("--nodes sets the scale of h, --size-min fixes it: give --size (the "
                          "shape of h) with --nodes")
     tuned = [f for f, v in (("--nodes", args.nodes), ("--gradation", args.gradation),
-                            ("--feature-layers", args.feature_layers)) if v is not None]
+                            ("--feature-layers", args.feature_layers),
+                            ("--min-feature", args.min_feature)) if v is not None]
     if args.method == "distmesh" and tuned:
         raise ValueError(f"{', '.join(tuned)} apply to --method injection only")
 
@@ -564,6 +570,8 @@ def _generate(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
                 options["gradation"] = args.gradation or None  # 0: off
             if args.feature_layers is not None:
                 options["feature_layers"] = args.feature_layers or None
+            if args.min_feature is not None:
+                options["min_feature"] = args.min_feature
             mesh = injmesh.generate(
                 source.domain, size, method=args.method, max_iterations=args.max_iterations,
                 target_nodes=args.nodes, callback=bar, regions=regions or None,

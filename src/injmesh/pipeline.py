@@ -35,6 +35,10 @@ DEFAULT_MAX_NODES = 5_000_000
 
 #: Geometry is cleaned at this fraction of the smallest h (see ``_clean``).
 CLEAN = 0.01
+#: By default a part of the outline beyond a pinch narrower than CLEAN * h_min is dropped only
+#: when its area is at most PINCH_AREA * h_min**2 (smaller than two elements); a larger one is
+#: a GeometryError naming the place (see ``_clean``).
+PINCH_AREA = 1.0
 
 logger = logging.getLogger(__name__)
 
@@ -58,6 +62,7 @@ def generate(
     callback: Callback | None = None,
     regions: RegionsLike | None = None,
     curves: CurvesLike | None = None,
+    min_feature: float | None = None,
 ) -> Mesh:
     """Mesh a 2-D domain with triangles whose edges follow the size function h.
 
@@ -150,6 +155,19 @@ def generate(
         vertices where a polyline turns and crossings are fixed nodes.  ``mesh.curve_edges``
         holds every interior constraint edge, ``mesh.curve_tags`` its curve, indexing
         ``mesh.curve_names`` (the curves, then the interfaces between regions).
+    min_feature : float, optional
+        Injection only.  Where the outline comes back within ``min_feature`` of itself (a neck
+        of the domain, an inlet's mouth, a hole or an island almost touching another ring),
+        the outline is cut there and the smaller part beyond is dropped (a lobe or an island
+        removed, a pocket or a hole filled), with a warning naming each place; the count is
+        ``mesh.stats.cleaning["pinched_parts"]`` (:meth:`Polygon.cleaned
+        <injmesh.geometry.Polygon.cleaned>`; polygonal boundaries only).  Thinner parts than
+        this are not meshed; thicker ones are, with elements of about ``feature size /
+        feature_layers``.  By default it is 1 % of the smallest h, the tolerance at which
+        vertices are merged, and a part larger than ``h_min**2`` beyond such a pinch raises
+        :class:`GeometryError` naming the place instead of being dropped; given explicitly,
+        every part beyond a narrower pinch is dropped, whatever its size.  0 turns it off (a
+        pinch then needs elements about as small as its width).
 
     Returns
     -------
@@ -189,11 +207,11 @@ def generate(
             if not full:
                 return len(initial_nodes(domain, scaled, bbox=bbox, fixed_points=fixed_points,
                                          max_nodes=budget, feature_layers=feature_layers,
-                                         gradation=gradation))
+                                         gradation=gradation, min_feature=min_feature))
             return generate(domain, scaled, bbox=bbox, fixed_points=fixed_points,
                             max_iterations=max_iterations, max_nodes=budget, smoothing=smoothing,
                             feature_layers=feature_layers, gradation=gradation, strict=strict,
-                            callback=callback, regions=regions, curves=curves)
+                            callback=callback, regions=regions, curves=curves, min_feature=min_feature)
 
         return _meet_node_count(as_domain(domain, bbox=bbox, fixed_points=fixed_points), h,
                                 wanted, at_scale, budget)
@@ -201,8 +219,8 @@ def generate(
     if method == "distmesh":
         from .distmesh import distmesh
 
-        if regions is not None or curves is not None:
-            raise ValueError("regions and curves apply to method='injection' only")
+        if regions is not None or curves is not None or min_feature is not None:
+            raise ValueError("regions, curves and min_feature apply to method='injection' only")
         mesh = distmesh(
             dom, h, h0=h0, seed=seed, fixed_points=fixed, max_iterations=max_iterations,
             max_nodes=int(max_nodes), callback=callback,
@@ -215,7 +233,7 @@ def generate(
             raise ValueError("h0 and seed apply to method='distmesh' only")
         if smoothing not in ("hybrid", "attractive"):
             raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
-        dom, cleaning = _clean(dom, h)
+        dom, cleaning = _clean(dom, h, min_feature)
         constraints = None
         if regions is not None or curves is not None:
             h_min, _ = estimate_nodes(dom, h.restricted(dom))
@@ -254,6 +272,7 @@ def initial_nodes(
     max_nodes: int = DEFAULT_MAX_NODES,
     feature_layers: float | None = 2.0,
     gradation: float | None = 0.2,
+    min_feature: float | None = None,
 ) -> FloatArray:
     """The nodes of Steps 1 and 2 (boundary meshing and Advancing Node Injection), unsmoothed.
 
@@ -274,7 +293,7 @@ def initial_nodes(
     """
     dom = as_domain(domain, bbox=bbox, fixed_points=fixed_points)
     h0 = as_size_function(size)
-    dom, _ = _clean(dom, h0)
+    dom, _ = _clean(dom, h0, min_feature)
     _, h = _target_size(dom, corner_size(dom, h0, _rate(gradation)), feature_layers, gradation)
     fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
     bnd, seeds, injected = _place_nodes(dom, h, fixed, max_nodes, None)
@@ -416,31 +435,65 @@ def _capped(h: Callable[[FloatArray], FloatArray], cap: float) -> Callable[[Floa
     return capped
 
 
-def _clean(domain: Domain, h: SizeFunction) -> tuple[Domain, dict[str, int]]:
+def _clean(
+    domain: Domain, h: SizeFunction, min_feature: float | None = None
+) -> tuple[Domain, dict[str, int]]:
     """The domain cleaned at the scale of h: vertices closer than ``CLEAN * h_min`` merged,
-    zero-length edges and spikes dropped (``Domain.cleaned``), and what changed.
+    zero-length edges and spikes dropped, parts beyond pinches narrower than ``min_feature``
+    dropped (``Domain.cleaned``), and what changed.
 
     GIS outlines carry vertices 1e-7 apart; meshed as given they make a duplicate node and a
-    triangle of zero area.  Changes are logged and kept in ``mesh.stats.cleaning``.
+    triangle of zero area.  A detailed outline also comes back within a fraction of h of itself
+    (a fractal coastline: lobes on necks 1e-7 to 1e-4 wide for h = 0.02): the mesh cannot
+    follow both sides of such a pinch (boundary nodes closer than the tolerances, segments that
+    Delaunay cannot keep) and, as given, lost whole lobes.  Such a pinch narrower than
+    ``min_feature`` (default ``CLEAN * h_min``) cuts the outline, and the smaller part beyond
+    it is dropped: by default only when it is smaller than the elements (area at most
+    ``PINCH_AREA * h_min**2``, else :class:`GeometryError` naming the place), whatever its size
+    when ``min_feature`` is given.  Changes are logged and kept in ``mesh.stats.cleaning``;
+    dropped parts are also a warning naming each place.
 
     Cleaning moves the boundary, by design and only within its tolerance of the outline's
     *width*: a merged vertex moves by less than ``CLEAN * h_min``; a dropped spike (a part of
     the outline narrower than that, one hundredth of the smallest element) disappears whatever
-    its length, since no triangle could fill it.  The mesh is a mesh of the cleaned domain, and
-    its output checks (:mod:`injmesh.validate`) hold against that domain; compare a mesh with
-    the raw outline only where ``mesh.stats.cleaning`` is empty.
+    its length, since no triangle could fill it, as does a part beyond a pinch.  The mesh is a
+    mesh of the cleaned domain, and its output checks (:mod:`injmesh.validate`) hold against
+    that domain; compare a mesh with the raw outline only where ``mesh.stats.cleaning`` is
+    empty.
     """
+    if min_feature is not None and not (
+        isinstance(min_feature, (int, float, np.number)) and not isinstance(min_feature, (bool, np.bool_))
+        and math.isfinite(float(min_feature)) and min_feature >= 0
+    ):
+        raise ValueError(f"min_feature must be a finite length >= 0, got {min_feature!r}")
     # A constant h (capped at the diameter, as the stages cap it) is its own minimum.
     if h.constant is not None:
         h_min = min(h.constant, domain.diameter)
     else:
         h_min = estimate_nodes(domain, h.restricted(domain))[0]
-    cleaned, report = domain.cleaned(CLEAN * h_min)
+    if min_feature is None:
+        width, max_area = CLEAN * h_min, PINCH_AREA * h_min * h_min
+    else:
+        width, max_area = float(min_feature), None
+    cleaned, report = domain.cleaned(CLEAN * h_min, min_feature=width, max_area=max_area)
     changes = {k: int(v) for k, v in report.items() if v}
     if changes:
         logger.info("geometry cleaned at %.3g: %s", CLEAN * h_min,
                     ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in changes.items()))
+    parts = getattr(cleaned, "dropped_parts", ())
+    if parts:
+        shown = "; ".join(f"({x:.6g}, {y:.6g}): gap {g:.2g}, area {a:.2g}"
+                          for x, y, g, a in parts[:MAX_LISTED])
+        more = f"; ... ({len(parts)} in all)" if len(parts) > MAX_LISTED else ""
+        message = (f"{len(parts)} part(s) of the outline beyond pinches narrower than min_feature = "
+                   f"{width:.3g} were dropped (lobes removed, pockets filled) at {shown}{more}")
+        logger.info(message)
+        warnings.warn(message, UserWarning, stacklevel=3)
     return cleaned, changes
+
+
+#: Places listed in a cleaning warning.
+MAX_LISTED = 5
 
 
 def _rate(gradation: float | None) -> float:

@@ -150,12 +150,16 @@ class Domain(ABC):
         loops = trace_loops(self.sdf, self.bbox, spacing)
         return [self.project(loop) for loop in loops]
 
-    def cleaned(self, tolerance: float) -> tuple[Domain, dict[str, int]]:
+    def cleaned(
+        self, tolerance: float, *, min_feature: float | None = None, max_area: float | None = None
+    ) -> tuple[Domain, dict[str, int]]:
         """This domain with defects smaller than ``tolerance`` removed, and what was changed.
 
         Subclasses with an explicit boundary (polygons, exact set operations) merge vertices
         closer than ``tolerance``, drop zero-length edges and collinear spikes and fix the
-        orientation; the report counts each change.  The base class changes nothing.
+        orientation, and cut the outline where it comes within ``min_feature`` of itself
+        (:meth:`Polygon.cleaned <injmesh.geometry.Polygon.cleaned>`); the report counts each
+        change.  The base class changes nothing.
 
         Returns
         -------

@@ -312,11 +312,14 @@ class BRep(Domain):
         bounds = np.searchsorted(piece, self._loop_start)
         return [pts[bounds[k]:bounds[k + 1]] for k in range(self.n_loops)]
 
-    def cleaned(self, tolerance: float) -> tuple[Domain, dict[str, int]]:
+    def cleaned(
+        self, tolerance: float, *, min_feature: float | None = None, max_area: float | None = None
+    ) -> tuple[Domain, dict[str, int]]:
         """Remove pieces shorter than ``tolerance`` (their neighbours meet at the removed
         piece's start); a loop left with fewer than two pieces is dropped.  A boundary made of
-        segments only is cleaned as a polygon (merged vertices, spikes) when its loops do not
-        touch each other."""
+        segments only is cleaned as a polygon (merged vertices, spikes, parts beyond pinches
+        narrower than ``min_feature``: :meth:`Polygon.cleaned`) when its loops do not touch each
+        other."""
         if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance >= 0):
             raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
         if not np.any(self._sw):
@@ -330,7 +333,7 @@ class BRep(Domain):
             except GeometryError:
                 pass  # loops that touch (operands meeting at a point): remove short pieces only
             else:
-                return poly.cleaned(tolerance)
+                return poly.cleaned(tolerance, min_feature=min_feature, max_area=max_area)
         length = np.where(self._sw != 0, np.abs(self._sw) * self._r, np.hypot(*(self._p1 - self._p0).T))
         short = length < tolerance
         report = {"short_pieces": 0, "dropped_loops": 0}

@@ -84,9 +84,13 @@ class _Combination(Domain):
         exact = self.exact_brep()
         return exact.boundary_loops(spacing) if exact is not None else super().boundary_loops(spacing)
 
-    def cleaned(self, tolerance: float) -> tuple[Domain, dict[str, int]]:
+    def cleaned(
+        self, tolerance: float, *, min_feature: float | None = None, max_area: float | None = None
+    ) -> tuple[Domain, dict[str, int]]:
         exact = self.exact_brep()
-        return exact.cleaned(tolerance) if exact is not None else super().cleaned(tolerance)
+        if exact is None:
+            return super().cleaned(tolerance)
+        return exact.cleaned(tolerance, min_feature=min_feature, max_area=max_area)
 
     def _active(self, p: FloatArray) -> tuple[FloatArray, IntArray, FloatArray]:
         """d, the index (in :meth:`leaves`) of the leaf that attains it, and the margin: how far

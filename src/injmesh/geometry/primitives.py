@@ -181,7 +181,9 @@ class Polygon(BRep):
         """The rings after the first, clockwise for the holes of a single polygon."""
         return [r + self._origin for r in self._rings_local[1:]]
 
-    def cleaned(self, tolerance: float) -> tuple[Polygon, dict[str, int]]:
+    def cleaned(
+        self, tolerance: float, *, min_feature: float | None = None, max_area: float | None = None
+    ) -> tuple[Polygon, dict[str, int]]:
         """This polygon with its defects below ``tolerance`` removed, and what changed.
 
         Consecutive vertices closer than ``tolerance`` are merged (the first of a run is kept),
@@ -189,11 +191,31 @@ class Polygon(BRep):
         dropped, and a hole that collapses is dropped.  The counts also include the repeated
         vertices dropped and the rings reoriented when the polygon was built.
 
+        Then, with ``min_feature``, the *pinches*: wherever the outline comes within
+        ``min_feature`` of itself -- a neck of the domain narrower than that,
+        or a gap of its outside (an inlet's mouth, an island or a hole almost touching another
+        ring) -- the outline is cut there and the smaller part beyond (by area) is dropped: a
+        lobe or an island removed, a pocket or a hole filled.  On one ring the cut joins the
+        two sides at the midpoint of the pinch, one vertex.  A pinch on one ring counts only
+        when the part beyond it is not a wedge (see ``PINCH_DETOUR``, ``PINCH_WIDENS``): the
+        tip of a sharp corner is kept.  Each dropped part is listed in
+        :attr:`dropped_parts` of the result and counted as ``pinched_parts``.
+
+        Parameters
+        ----------
+        tolerance : float
+            Vertices closer than this merge; spikes thinner than this are dropped.
+        min_feature : float, optional
+            Pinches narrower than this are cut (default: none is; 0 likewise).
+        max_area : float, optional
+            A part larger than this is not dropped: :class:`GeometryError` (default: no limit).
+
         Raises
         ------
         GeometryError
             The cleaned polygon would be invalid (its edges would cross, or its shell
-            collapses): cleaning never changes the topology silently.
+            collapses): cleaning never changes the topology silently; or the part beyond a
+            pinch is larger than ``max_area``.
 
         Examples
         --------
@@ -201,13 +223,69 @@ class Polygon(BRep):
         >>> q, report = p.cleaned(1e-5)
         >>> len(q.vertices), report["merged_vertices"]
         (4, 1)
+
+        A square lobe joined to the unit square by a neck 1e-4 wide is dropped:
+
+        >>> lobe = Polygon([(0, 0), (1, 0), (1, 0.5), (1.1, 0.5), (1.1, 0.4), (1.2, 0.4), (1.2, 0.6),
+        ...                 (1.1, 0.6), (1.1, 0.5001), (1, 0.5001), (1, 1), (0, 1)])
+        >>> q, report = lobe.cleaned(1e-5, min_feature=1e-3)
+        >>> report["pinched_parts"], round(q.area, 6), q.dropped_parts[0][:2]
+        (1, 1.0, (1.0, 0.50005))
         """
         if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance >= 0):
             raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
+        width = 0.0 if min_feature is None else min_feature
+        if not (isinstance(width, (int, float)) and math.isfinite(width) and width >= 0):
+            raise ValueError(f"min_feature must be a finite number >= 0, got {min_feature!r}")
+        limit = math.inf if max_area is None else float(max_area)
         report = dict(self._report)
-        report.update(merged_vertices=0, spikes=0, dropped_rings=0)
-        rings, names = [], []
-        for k, ring in enumerate(self._rings_local):
+        report.update(merged_vertices=0, spikes=0, dropped_rings=0, pinched_parts=0)
+        rings, names = self._clean_rings(self._rings_local, self._names, tolerance, report)
+        dropped: list[tuple[float, float, float, float]] = []
+        if width > 0 and rings:
+            pinched, dropped, too_large = _pinch_rings(rings, width, limit)
+            if too_large:
+                x, y, gap, area = min(too_large, key=lambda w: w[2])
+                raise GeometryError(
+                    f"the outline comes within {gap:.3g} of itself at ({x + self._origin[0]:.9g}, "
+                    f"{y + self._origin[1]:.9g}), narrower than min_feature={width:.3g}, and the part "
+                    f"beyond it (area {area:.3g}) is larger than max_area={limit:.3g}: pass a "
+                    f"min_feature below {gap:.3g} to mesh it, or a larger max_area to drop it"
+                    + (f" ({len(too_large)} such places)" if len(too_large) > 1 else "")
+                )
+            if dropped:
+                report["pinched_parts"] = len(dropped)
+                # The cut leaves a vertex at each pinch: merge and drop spikes round it again.
+                rings, names = self._clean_rings(pinched, [f"ring {k}" for k in range(len(pinched))],
+                                                 tolerance, report)
+        changed = ("merged_vertices", "spikes", "dropped_rings", "pinched_parts")
+        if not any(report[k] for k in changed):
+            self.dropped_parts = ()
+            return self, report
+        if not rings:
+            raise GeometryError(f"every ring of the Polygon collapses at tolerance {tolerance:g}")
+        obj = Polygon.__new__(Polygon)
+        mode = self._mode if not dropped else "nesting"
+        try:
+            obj._build([r + self._origin for r in rings], names, depth=mode, dropped=0)
+        except GeometryError as exc:
+            raise GeometryError(
+                f"cleaning the Polygon at tolerance {tolerance:g} would make it invalid: {exc}"
+            ) from exc
+        obj._report = report
+        obj.dropped_parts = tuple((x + float(self._origin[0]), y + float(self._origin[1]), g, a)
+                                  for x, y, g, a in dropped)
+        return obj, report
+
+    #: Parts dropped at pinches by :meth:`cleaned`: ``(x, y, gap, area)`` each, the pinch's
+    #: midpoint, its width and the area of the part.
+    dropped_parts: tuple[tuple[float, float, float, float], ...] = ()
+
+    def _clean_rings(
+        self, local: list[FloatArray], names: list[str], tolerance: float, report: dict[str, int]
+    ) -> tuple[list[FloatArray], list[str]]:
+        rings, kept = [], []
+        for k, ring in enumerate(local):
             out, merged, spikes = _clean_ring(ring, tolerance)
             report["merged_vertices"] += merged
             report["spikes"] += spikes
@@ -219,20 +297,8 @@ class Polygon(BRep):
                 report["dropped_rings"] += 1
                 continue
             rings.append(out)
-            names.append(self._names[k])
-        if report["merged_vertices"] + report["spikes"] + report["dropped_rings"] == 0:
-            return self, report
-        if not rings:
-            raise GeometryError(f"every ring of the Polygon collapses at tolerance {tolerance:g}")
-        obj = Polygon.__new__(Polygon)
-        try:
-            obj._build([r + self._origin for r in rings], names, depth=self._mode, dropped=0)
-        except GeometryError as exc:
-            raise GeometryError(
-                f"cleaning the Polygon at tolerance {tolerance:g} would make it invalid: {exc}"
-            ) from exc
-        obj._report = report
-        return obj, report
+            kept.append(names[k])
+        return rings, kept
 
 
 class Rectangle(Polygon):
@@ -386,3 +452,171 @@ def _containment(local: list[FloatArray]) -> NDArray[np.bool_]:
     inside = containment(first, a, b, ring, len(local))
     np.fill_diagonal(inside, False)
     return inside
+
+
+#: A place where the outline comes within ``min_feature`` of itself is a *pinch* when the part
+#: beyond it is not a wedge: the boundary round that part is at least PINCH_DETOUR times the
+#: gap (as :data:`injmesh.sizing.features.GAP_DETOUR`), and the part is on average at least
+#: PINCH_WIDENS times as wide as the gap (2 area / boundary length; a sharp wedge, narrowing
+#: steadily to its tip, is half as wide as its base on average).
+PINCH_DETOUR = 20.0
+PINCH_WIDENS = 1.0
+#: Rounds of pinching (pinches inside a part cut off in the same round wait for the next).
+PINCH_ROUNDS = 32
+
+_Place = tuple[float, float, float, float]
+
+
+def _segment_gaps(
+    a: FloatArray, b: FloatArray, i: NDArray[np.int64], j: NDArray[np.int64]
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Distance between segments ``a[i] b[i]`` and ``a[j] b[j]`` (which do not cross), the
+    nearest points on each, and their parameters along each segment."""
+    pi, qi, pj, qj = a[i], b[i], a[j], b[j]
+
+    def foot(p: FloatArray, s0: FloatArray, s1: FloatArray) -> tuple[FloatArray, FloatArray]:
+        d = s1 - s0
+        t = np.einsum("kj,kj->k", p - s0, d) / np.maximum(np.einsum("kj,kj->k", d, d), 1e-300)
+        t = np.clip(t, 0.0, 1.0)
+        return t, s0 + t[:, None] * d
+
+    # Non-crossing segments: the nearest pair has an end point of one of them.
+    cands = []
+    for p, s0, s1, on_i in ((pi, pj, qj, True), (qi, pj, qj, True), (pj, pi, qi, False), (qj, pi, qi, False)):
+        t, f = foot(p, s0, s1)
+        dist = np.hypot(*(p - f).T)
+        cands.append((dist, p, f, t, on_i))
+    dist = np.stack([c[0] for c in cands])
+    best = np.argmin(dist, axis=0)
+    rows = np.arange(len(i))
+    gap = dist[best, rows]
+    x_i = np.empty((len(i), 2))
+    x_j = np.empty((len(i), 2))
+    t_i = np.empty(len(i))
+    t_j = np.empty(len(i))
+    ends = (0.0, 1.0, 0.0, 1.0)
+    for k, (_, p, f, t, on_i) in enumerate(cands):
+        sel = best == k
+        if on_i:  # the end point is on segment i, the foot on segment j
+            x_i[sel], x_j[sel], t_i[sel], t_j[sel] = p[sel], f[sel], ends[k], t[sel]
+        else:
+            x_i[sel], x_j[sel], t_i[sel], t_j[sel] = f[sel], p[sel], t[sel], ends[k]
+    return gap, x_i, x_j, t_i, t_j
+
+
+def _pinch_rings(
+    local: list[FloatArray], width: float, max_area: float
+) -> tuple[list[FloatArray], list[_Place], list[_Place]]:
+    """Cut the rings where they come within ``width`` of themselves or of each other, and drop
+    the smaller part beyond each such pinch (see :meth:`Polygon.cleaned`).
+
+    Returns the rings, the parts dropped as ``(x, y, gap, area)`` (the pinch's midpoint, local
+    coordinates) and the pinches whose smaller part is larger than ``max_area`` (not cut).
+    """
+    from ..kernels.brep import box_pairs, build_bvh
+
+    rings = [r.copy() for r in local]
+    dropped: list[tuple[float, float, float, float]] = []
+    too_large: list[tuple[float, float, float, float]] = []
+    for _ in range(PINCH_ROUNDS):
+        a, b, ring, nxt = _ring_edges(rings)
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        tree = build_bvh(lo, hi)
+        pairs = box_pairs(lo, hi, *tree, float(width))  # type: ignore[call-arg]
+        i, j = pairs[:, 0], pairs[:, 1]
+        keep = (i < j) & (nxt[i] != j) & (nxt[j] != i)
+        i, j = i[keep], j[keep]
+        if not len(i):
+            break
+        gap, x_i, x_j, t_i, t_j = _segment_gaps(a, b, i, j)
+        close = gap < width
+        i, j, gap, x_i, x_j = i[close], j[close], gap[close], x_i[close], x_j[close]
+        t_i, t_j = t_i[close], t_j[close]
+        if not len(i):
+            break
+        start = np.r_[0, np.cumsum([len(r) for r in rings])]
+        # Per ring: prefix sums of the shoelace terms and of the edge lengths.
+        cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+        length = np.hypot(*(b - a).T)
+        ccum = np.r_[0.0, np.cumsum(cross)]
+        lcum = np.r_[0.0, np.cumsum(length)]
+        ring_area = np.array([0.5 * (ccum[start[k + 1]] - ccum[start[k]]) for k in range(len(rings))])
+        ring_len = np.array([lcum[start[k + 1]] - lcum[start[k]] for k in range(len(rings))])
+        same = ring[i] == ring[j]
+        # The part between the two pinch points along the ring (from x_i through vertex i+1 to
+        # vertex j, then x_j): its shoelace area and boundary length.
+        between = (ccum[j] - ccum[i + 1]) * 0.5
+        c_i = 0.5 * (x_i[:, 0] * b[i, 1] - x_i[:, 1] * b[i, 0])
+        c_j = 0.5 * (a[j, 0] * x_j[:, 1] - a[j, 1] * x_j[:, 0])
+        chord = 0.5 * (x_j[:, 0] * x_i[:, 1] - x_j[:, 1] * x_i[:, 0])
+        area_in = np.where(same, c_i + between + c_j + chord, 0.0)
+        arc_in = (lcum[j] - lcum[i + 1]) + (1.0 - t_i) * length[i] + t_j * length[j]
+        area_out = ring_area[ring[i]] - area_in
+        arc_out = ring_len[ring[i]] - arc_in
+        inner = np.abs(area_in) <= np.abs(area_out)  # drop the part between i and j
+        part_area = np.where(inner, np.abs(area_in), np.abs(area_out))
+        part_arc = np.where(inner, arc_in, arc_out)
+        # Two rings: the smaller ring is the part.
+        small_j = np.abs(ring_area[ring[j]]) <= np.abs(ring_area[ring[i]])
+        other = np.where(small_j, ring[j], ring[i])
+        part_area = np.where(same, part_area, np.abs(ring_area[other]))
+        part_arc = np.where(same, part_arc, ring_len[other])
+        fat = 2.0 * part_area >= PINCH_WIDENS * gap * part_arc
+        pinch = ~same | ((part_arc >= PINCH_DETOUR * gap) & fat)
+        if not pinch.any():
+            break
+        sel = np.flatnonzero(pinch)
+        sel = sel[np.lexsort((j[sel], i[sel], gap[sel]))]
+        taken = np.zeros(len(a), dtype=bool)  # edges changed this round
+        gone = np.zeros(len(rings), dtype=bool)
+        cuts: dict[int, list[tuple[int, int, FloatArray, bool]]] = {}
+        for s in sel.tolist():
+            ii, jj = int(i[s]), int(j[s])
+            mid = 0.5 * (x_i[s] + x_j[s])
+            where = (float(mid[0]), float(mid[1]), float(gap[s]), float(part_area[s]))
+            if part_area[s] > max_area:
+                too_large.append(where)
+                continue
+            if not same[s]:
+                k = int(other[s])
+                if gone[ring[ii]] or gone[ring[jj]] or taken[ii] or taken[jj] or k in cuts:
+                    continue
+                gone[k] = True
+                taken[start[k]:start[k + 1]] = True
+                dropped.append(where)
+                continue
+            k = int(ring[ii])
+            if gone[k]:
+                continue
+            if inner[s]:
+                span = np.arange(ii, jj + 1)
+            else:
+                span = np.r_[np.arange(jj, start[k + 1]), np.arange(start[k], ii + 1)]
+            if taken[span].any():
+                continue
+            taken[span] = True
+            cuts.setdefault(k, []).append((ii - int(start[k]), jj - int(start[k]), mid, bool(inner[s])))
+            dropped.append(where)
+        if not cuts and not gone.any():
+            break
+        new = []
+        for k, r in enumerate(rings):
+            if gone[k]:
+                continue
+            if k in cuts:
+                # One vertex at each pinch replaces the dropped part (and the pinch's sides).
+                keep = np.ones(len(r), dtype=bool)
+                at, mids = [], []
+                for li, lj, mid, inner_part in cuts[k]:
+                    if inner_part:
+                        keep[li + 1: lj + 1] = False
+                    else:
+                        keep[lj + 1:] = False
+                        keep[: li + 1] = False
+                    at.append(lj + 0.5 if not inner_part else li + 0.5)
+                    mids.append(mid)
+                key = np.r_[np.flatnonzero(keep).astype(float), at]
+                r = np.concatenate([r[keep], np.array(mids)])[np.argsort(key, kind="stable")]
+            new.append(r)
+        rings = new
+    return rings, dropped, too_large

@@ -630,7 +630,7 @@ def effective_size(
         bound = PROBE_SLACK * hi
         # The margin is that of the grid the feature size would be computed on.
         fine = min(lo / CELLS_PER_H, dom.diameter / FEATURE_CELLS)
-        if _thick(dom, bound, n_layers, angle, fine, h.restricted(dom)):
+        if _thick(dom, bound, n_layers, angle, fine, _probe_h(h, dom)):
             grid, h0 = sampled_grid(h, dom, None, int(max_cells), rate_, h_min=lo)
             # A grid refined below the probe's h_min / 4 (smaller sizes, a thin domain) is
             # a case for the full computation.
@@ -640,7 +640,7 @@ def effective_size(
         grid, h0 = sampled_grid(h, dom, spacing, int(max_cells), rate_, dom.diameter / FEATURE_CELLS)
     inside = grid.inside
     h_max = float(h0[inside].max()) if inside.any() else np.inf
-    if thick or n_layers is None or _thick(dom, h_max, n_layers, angle, grid.spacing, h.restricted(dom)):
+    if thick or n_layers is None or _thick(dom, h_max, n_layers, angle, grid.spacing, _probe_h(h, dom)):
         # No wall faces another within a few of the largest h: the feature size changes nothing.
         target = h0
     else:
@@ -660,6 +660,15 @@ def effective_size(
     if grid.capped:
         return SizeFunction(_Lower(field, h.restricted(dom)))
     return SizeFunction(field)
+
+
+def _probe_h(h: SizeFunction, domain: Domain) -> Callable[[FloatArray], FloatArray]:
+    """h for :func:`_thick`'s probes along chords between walls: h itself where it is defined
+    everywhere (as :func:`unrestricted` decides), which saves the restriction's sdf call on
+    every probe (4 s of the 20,000-vertex outline's 7 s here), else h restricted."""
+    if h.constant is not None or getattr(h.function, "everywhere", False) is True:
+        return h
+    return h.restricted(domain)
 
 
 def _thick(domain: Domain, h_max: float, layers: float, corner_angle: float, spacing: float,
