@@ -21,6 +21,11 @@ built.  The front is a set of *chains*: polylines of nodes with the unmeshed reg
    gaps left are below about ``(MERGE + sqrt(3)/2) h`` wide and smoothing closes them.
 4. **Advance.**  The surviving runs of consecutive points are the next front.
 
+After the last layer, **gaps the fronts never reached are filled** (:func:`_fill_gaps`): fronts
+from a crinkled outline break into short runs that die before they meet, and the equilateral
+lattice of h over the cells they left empty is offered to the same admission test.  Where the
+fronts fill the domain (every case of the paper) nothing is added.
+
 The proximity tests of step 3 run on a background grid of about h_min cells that every
 admitted node is inserted into as it is admitted (:mod:`injmesh.kernels.inject`): nothing is
 rebuilt per layer, so the whole injection is linear in the number of nodes.  The wall test
