@@ -457,3 +457,46 @@ def test_quality_pass_raises_stars_and_keeps_the_mesh_valid(seed: int) -> None:
     before, after = triangle_quality(q_try, t), triangle_quality(out, t)
     assert after.min() >= before.min()
     assert after.mean() > before.mean()
+
+
+def test_repair_keeps_each_part_at_its_best_round() -> None:
+    """Bad triangles in two clusters far apart make a sub-mesh of two parts that share no
+    node: each part keeps its own best round, so neither ends worse than it started (a single
+    best round for both would keep the start as soon as one part got worse), and the result is
+    a valid triangulation of the same region."""
+    from injmesh import generate
+    from injmesh.quality import signed_areas, triangle_quality
+    from injmesh.smoothing import _Relaxation, _repair_rounds
+
+    square = Rectangle((0, 0), (1, 1))
+    mesh = generate(square, 0.04)
+    p, t = mesh.points, mesh.triangles
+    on = np.abs(square.sdf(p)) < 1e-12
+    order = np.concatenate([np.flatnonzero(on), np.flatnonzero(~on)])
+    inv = np.empty_like(order)
+    inv[order] = np.arange(len(order))
+    p, t = p[order].copy(), inv[t]
+    rng = np.random.default_rng(3)
+    start = p
+    while True:  # jitter the two clusters, short of turning a triangle over
+        p = start.copy()
+        for centre in ((0.25, 0.25), (0.75, 0.7)):
+            near = (np.hypot(*(p - centre).T) < 0.1) & (np.arange(len(p)) >= on.sum())
+            p[near] += rng.normal(0.0, 0.008, (int(near.sum()), 2))
+        if (signed_areas(p, t) > 0).all():
+            break
+    relax = _Relaxation(square, lambda x: np.full(len(x), 0.04), p, int(on.sum()),
+                        np.zeros((0, 3), dtype=np.intp), np.zeros((0, 2), dtype=np.intp), None, 1000,
+                        tri=t, patch=True)
+    q0 = triangle_quality(p, t)
+    out_p, out_t, kept, _, _ = _repair_rounds(relax, np.arange(len(p)))
+    q1 = triangle_quality(out_p, out_t)
+    assert (signed_areas(out_p, out_t) > 0).all()
+    assert abs(float(np.abs(signed_areas(out_p, out_t)).sum()) - 1.0) < 1e-9
+    assert len(np.unique(out_t)) == len(out_p)
+    c0, c1 = p[t].mean(axis=1), out_p[out_t].mean(axis=1)
+    for centre in ((0.25, 0.25), (0.75, 0.7)):
+        before = q0[np.hypot(*(c0 - centre).T) < 0.2].min()
+        after = q1[np.hypot(*(c1 - centre).T) < 0.2].min()
+        assert after >= before - 1e-12
+    assert q1.min() > q0.min()
