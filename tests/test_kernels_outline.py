@@ -96,15 +96,12 @@ def _thick_reference(v, prv, seg, seg_len, v_n, seg_n, radius, width, back_to_ba
 
 
 def _walls(v: np.ndarray):
+    from injmesh.sizing.features import wall_frames
+
     n = len(v)
     idx = np.arange(n)
     nxt, prv = (idx + 1) % n, (idx - 1) % n
-    seg = v[nxt] - v
-    seg_len = np.hypot(*seg.T)
-    seg_n = np.stack([-seg[:, 1], seg[:, 0]], axis=1) / np.maximum(seg_len, np.finfo(float).tiny)[:, None]
-    chord = v[nxt] - v[prv]
-    v_n = np.stack([-chord[:, 1], chord[:, 0]], axis=1)
-    v_n /= np.maximum(np.hypot(*v_n.T), np.finfo(float).tiny)[:, None]
+    seg, seg_len, v_n, seg_n = wall_frames(v, nxt, prv)
     return v, prv, seg, seg_len, v_n, seg_n
 
 

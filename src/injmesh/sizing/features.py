@@ -223,6 +223,25 @@ def _outline() -> Any:
     return outline
 
 
+def wall_frames(
+    v: FloatArray, nxt: NDArray[np.intp], prv: NDArray[np.intp]
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """What :func:`injmesh.kernels.outline.facing_walls` needs of closed loops of vertices
+    ``v`` (``nxt``/``prv``: each vertex's successor and predecessor on its loop): the segments
+    ``v -> nxt`` and their lengths, each vertex's inward normal and each segment's.
+
+    Segment k runs from vertex k to nxt[k]; its inward normal is the left one (domain on the
+    left); a vertex's normal is that of the chord from its predecessor to its successor.
+    """
+    seg = v[nxt] - v
+    seg_len = np.hypot(*seg.T)
+    seg_n = np.stack([-seg[:, 1], seg[:, 0]], axis=1) / np.maximum(seg_len, np.finfo(float).tiny)[:, None]
+    chord = v[nxt] - v[prv]
+    v_n = np.stack([-chord[:, 1], chord[:, 0]], axis=1)
+    v_n /= np.maximum(np.hypot(*v_n.T), np.finfo(float).tiny)[:, None]
+    return seg, seg_len, v_n, seg_n
+
+
 def thick_everywhere(domain: Domain, width: float, corner_angle: float,
                      needed: Callable[[FloatArray], FloatArray] | None = None,
                      back_to_back: float = 0.0) -> bool:
@@ -270,14 +289,7 @@ def thick_everywhere(domain: Domain, width: float, corner_angle: float,
     local = np.arange(len(v)) - start
     nxt = start + (local + 1) % np.repeat(sizes, sizes)
     prv = start + (local - 1) % np.repeat(sizes, sizes)
-    # Segment k runs from vertex k to nxt[k]; its inward normal is the left one (domain on the
-    # left); a vertex's normal is that of the chord from its predecessor to its successor.
-    seg = v[nxt] - v
-    seg_len = np.hypot(*seg.T)
-    seg_n = np.stack([-seg[:, 1], seg[:, 0]], axis=1) / np.maximum(seg_len, np.finfo(float).tiny)[:, None]
-    chord = v[nxt] - v[prv]
-    v_n = np.stack([-chord[:, 1], chord[:, 0]], axis=1)
-    v_n /= np.maximum(np.hypot(*v_n.T), np.finfo(float).tiny)[:, None]
+    seg, seg_len, v_n, seg_n = wall_frames(v, nxt, prv)
     cos = math.cos(math.radians(min(corner_angle + FACING_SLACK, 89.0)))
     walls = _outline()
     behind, a, foot, dist = walls.facing_walls(v, prv, seg, seg_len, v_n, seg_n,
