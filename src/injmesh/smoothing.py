@@ -377,7 +377,7 @@ class _Relaxation:
         #: d at each free node's anchor, or an upper bound of it for deep nodes (0 elsewhere).
         self._d0 = np.zeros(0)
         #: The fraction of its depth a node may move and be inside without asking the domain.
-        self._reach = 1.0 - 1e-9 if getattr(domain, "exact_distance", False) is True else 0.5
+        self._reach = _inside_reach(domain)
         self._set_triangles(triangulate(domain, p, walls) if tri is None else tri)
 
     def _projector(self, nodes: IntArray) -> Callable[[FloatArray], FloatArray]:
@@ -499,9 +499,7 @@ class _Relaxation:
             before = self._t32.copy()
             res = int(flip_rows_to_delaunay(self.p, self._t32, self._nbr, self._con, self._vt, rows))
         if res < 0:
-            if self._patch:
-                raise _PatchInverted
-            self._set_triangles(triangulate(self.domain, self.p, self.walls))
+            self._from_scratch()
         elif res == 0 and moved is not None:
             # No flip: the node lists stay; only the moved nodes' bars and anchors are renewed.
             self._refresh(moved)
@@ -510,6 +508,13 @@ class _Relaxation:
         else:
             # No flip keeps the node lists (the usual case once the nodes settle).
             self._connect(rebuild=res > 0)
+
+    def _from_scratch(self) -> None:
+        """After flips met an inverted triangle: a new triangulation, or ``_PatchInverted`` for
+        a sub-mesh (only a triangulation of the whole mesh could undo it)."""
+        if self._patch:
+            raise _PatchInverted
+        self._set_triangles(triangulate(self.domain, self.p, self.walls))
 
     def _flipped(self, before: Int32Array, moved: IntArray) -> bool:
         """Apply the flips that turned ``before`` into the current triangles to the node lists
@@ -630,9 +635,7 @@ class _Relaxation:
         before = self._t32.copy()
         res = self._k_flip(self.p, self._t32, self._nbr, self._con, self._vt)
         if res < 0:
-            if self._patch:
-                raise _PatchInverted
-            self._set_triangles(triangulate(self.domain, self.p, self.walls))
+            self._from_scratch()
             return self.tri
         if res > 0 and self._relink(before) is None:
             self._connect(rebuild=True)
@@ -663,6 +666,12 @@ class _Relaxation:
         rows = np.asarray(changed, dtype=np.intp)
         self.tri[rows] = self._t32[rows]
         return np.asarray(added)
+
+
+def _inside_reach(domain: Domain) -> float:
+    """The fraction of its depth |d| a point may move and still be inside: all of it (a hair
+    less) when d is an exact distance, half when it is not (the factor 2 ``DEEP`` allows)."""
+    return 1.0 - 1e-9 if getattr(domain, "exact_distance", False) is True else 0.5
 
 
 def _slide(
@@ -837,9 +846,9 @@ def _settle(relax: _Relaxation) -> bool:
     local = _patch_local(relax, relax.p, relax.tri, moving.astype(np.int64), relax.iterations,
                          ring=TAIL_RING, steps=TAIL_STEPS, csr=relax._csr[:2])
     if local is None:
-        # A flip met an inverted triangle: as _patch, on the whole mesh.
-        p, tri, steps, extra = _patch(relax, relax.p, relax.tri, moving.astype(np.int64), relax.iterations,
-                                      ring=TAIL_RING, steps=TAIL_STEPS)
+        # A flip met an inverted triangle: the same steps on the whole mesh.
+        p, tri, steps, extra = _patch_whole(relax, relax.p, relax.tri, moving.astype(np.int64),
+                                            relax.iterations, TAIL_RING, TAIL_STEPS)
         relax.p[:] = p
         relax.iterations += steps
         relax.retriangulations += extra
@@ -1082,18 +1091,7 @@ def _patch(
     """
     local = _patch_local(relax, p, tri, touched, iterations, ring, steps)
     if local is None:
-        # As before patches: the whole mesh, re-triangulated from scratch when a flip meets an
-        # inverted triangle.
-        from .kernels.smooth import adjacency, rings
-
-        indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32))
-        active = rings(indptr, adj, touched, ring)
-        whole = _Relaxation(relax.domain, relax.h, p, relax.n_fixed, relax.slide, relax.walls,
-                            relax.callback, relax.cap, active=active, tri=tri, project=relax.project,
-                            patch=relax._patch, total=relax.total)
-        whole.iterations = iterations
-        whole.run("spring", steps)
-        return whole.p, whole.tri, whole.iterations - iterations, whole.retriangulations
+        return _patch_whole(relax, p, tri, touched, iterations, ring, steps)
     state, nodes, rows = local
     in_patch = np.zeros(len(tri), dtype=bool)
     in_patch[rows] = True
@@ -1101,6 +1099,25 @@ def _patch(
     out[nodes] = state.p
     return (out, np.concatenate([tri[~in_patch], nodes[state.tri]]), state.iterations - iterations,
             state.retriangulations)
+
+
+def _patch_whole(
+    relax: _Relaxation, p: FloatArray, tri: IntArray, touched: NDArray[np.int64], iterations: float,
+    ring: int, steps: int,
+) -> tuple[FloatArray, IntArray, float, int]:
+    """:func:`_patch` on the whole mesh, for when the sub-mesh's flips met an inverted triangle:
+    the nodes within ``ring`` edges of ``touched`` step, re-triangulated from scratch if need
+    be.  Returns the points, triangles, steps and triangulations."""
+    from .kernels.smooth import adjacency, rings
+
+    indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32))
+    active = rings(indptr, adj, touched, ring)
+    whole = _Relaxation(relax.domain, relax.h, p, relax.n_fixed, relax.slide, relax.walls,
+                        relax.callback, relax.cap, active=active, tri=tri, project=relax.project,
+                        patch=relax._patch, total=relax.total)
+    whole.iterations = iterations
+    whole.run("spring", steps)
+    return whole.p, whole.tri, whole.iterations - iterations, whole.retriangulations
 
 
 def _patch_local(
@@ -1433,7 +1450,7 @@ def _optimize(
     """
     from .kernels.smooth import corners_by_node, restar, star_min, star_targets, star_trial
 
-    reach = 1.0 - 1e-9 if getattr(domain, "exact_distance", False) is True else 0.5
+    reach = _inside_reach(domain)
     p = p.copy()
     n = len(p)
     # Boundary neighbours: a boundary node's move must stay next to its own two segments.
