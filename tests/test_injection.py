@@ -154,3 +154,27 @@ def test_gaps_the_fronts_left_are_filled() -> None:
     grid2 = _Proximity(dom2, b2, np.concatenate([b2.points, injected]),
                        h(np.concatenate([b2.points, injected])), 0.1)
     assert len(_fill_gaps(dom2, h, grid2)) == 0
+
+
+def test_the_fill_skips_the_exterior_without_changing_what_it_offers() -> None:
+    """For an exact distance the fill stops offering lattice cells that lie wholly outside
+    (found at a coarser level); the nodes it places are those of the same domain given as a
+    plain signed distance, for which nothing is skipped."""
+    from injmesh.geometry import as_domain
+    from injmesh.injection import _fill_gaps, _Proximity
+
+    # A thin "C" in a large box (most of the box is outside) with h graded 8:1, so that the
+    # fill runs several levels.
+    ring = Circle((0, 0), 1.0) - Circle((0, 0), 0.8) - Rectangle((0.3, -0.2), (1.2, 0.2))
+    size = as_size_function(lambda p: 0.02 + 0.07 * (p[:, 1] + 1.0))
+    plain = as_domain(lambda p: ring.sdf(p), bbox=ring.bbox)
+    assert getattr(ring, "exact_distance", False) is True
+    assert getattr(plain, "exact_distance", False) is not True
+    placed = []
+    for dom in (ring, plain):
+        h = size.restricted(dom)
+        b = mesh_boundary(ring, h, np.empty((0, 2)), max_nodes=BUDGET)
+        grid = _Proximity(dom, b, b.points, h(b.points), float(h(b.points).min()))
+        placed.append(_fill_gaps(dom, h, grid))
+    assert len(placed[0]) > 100
+    assert np.array_equal(placed[0], placed[1])

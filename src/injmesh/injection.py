@@ -191,10 +191,19 @@ def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity) -> FloatArray:
     test as injected nodes (inside, clear of the boundary and of every node by ``MERGE * h``).
     Gaps the fronts leave where they meet are narrower than two h and hold no deep-empty cell,
     so a domain the fronts fill gets nothing here.
+
+    Outside the domain every cell is empty, so each level would offer the lattice over the
+    whole exterior of the bounding box: 4x more points per halving, 97 % of the 575,000 at the
+    last level of the 20,000-vertex outline, and their sdf cost more than the rest of the
+    injection.  For an exact distance (1-Lipschitz) a lattice point farther outside than a
+    cell's diagonal puts its whole cell outside, and so the four cells of the next level in
+    it: those are never offered again.
     """
     x0, y0, x1, y1 = (float(v) for v in domain.bbox)
     s = grid.h_max
     out: list[FloatArray] = []
+    exact = getattr(domain, "exact_distance", False) is True
+    before: NDArray[np.bool_] | None = None  # cells of the previous level wholly outside
     for level in range(FILL_LEVELS + 1):
         first = level == 0
         if not (s > 0 and math.isfinite(s)) or s < grid.h_min:
@@ -202,6 +211,13 @@ def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity) -> FloatArray:
         nx, ny = int((x1 - x0) / s) + 1, int((y1 - y0) / s) + 1
         if nx * ny > FILL_CELLS:
             break
+        if before is None:
+            outside = np.zeros((ny, nx), dtype=bool)
+        else:
+            # This level's cell (j, i) lies in the previous level's cell (j // 2, i // 2).
+            py = np.minimum(np.arange(ny) // 2, before.shape[0] - 1)
+            px = np.minimum(np.arange(nx) // 2, before.shape[1] - 1)
+            outside = before[np.ix_(py, px)]
         pts = grid.pts[: grid.n]
         ix = np.floor((pts[:, 0] - x0) / s).astype(np.int64)
         iy = np.floor((pts[:, 1] - y0) / s).astype(np.int64)
@@ -218,7 +234,7 @@ def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity) -> FloatArray:
             for dy in (-1, 0, 1):
                 for dx in (-1, 0, 1):
                     grown[1 + dy: ny + 1 + dy, 1 + dx: nx + 1 + dx] |= deep
-            cells = grown[1:-1, 1:-1] & ~occupied[1:-1, 1:-1]
+            cells = grown[1:-1, 1:-1] & ~occupied[1:-1, 1:-1] & ~outside
             if not first:
                 # Only where the nearest node's h suits this spacing: a coarser level has
                 # already offered its lattice where h is larger (most of a fine level's empty
@@ -229,23 +245,22 @@ def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity) -> FloatArray:
                 cell_h[iy[ok], ix[ok]] = grid.hs[: grid.n][ok]
                 _, (jj, ii) = ndimage.distance_transform_edt(~occupied[1:-1, 1:-1], return_indices=True)
                 cells &= cell_h[jj, ii] < FILL_NEAR * FILL_H * s
-            # The equilateral lattice of spacing s, rows sqrt(3)/2 s apart, odd rows shifted.
+            # The equilateral lattice of spacing s, rows sqrt(3)/2 s apart, odd rows shifted:
+            # point i of row r is in cell column i (i < nx), row floor((y_r - y0) / s); the
+            # candidates are listed row by row, in x order.
             rows = np.arange(int((y1 - y0) / (HEIGHT * s)) + 1)
             ys = y0 + rows * HEIGHT * s
             cy = np.floor((ys - y0) / s).astype(np.int64)
-            cand = []
-            for r, y, c in zip(rows.tolist(), ys.tolist(), cy.tolist(), strict=True):
-                if c >= ny or not cells[c].any():
-                    continue
-                xs = x0 + (np.arange(nx + 1) + 0.5 * (r % 2)) * s
-                cx = np.floor((xs - x0) / s).astype(np.int64)
-                sel = (cx < nx)
-                sel[sel] = cells[c, cx[sel]]
-                if sel.any():
-                    cand.append(np.stack([xs[sel], np.full(int(sel.sum()), y)], axis=1))
-            if cand:
-                q = np.concatenate(cand)
-                inside = domain.sdf(q) < 0
+            rows = rows[cy < ny]
+            r, i = np.nonzero(cells[cy[rows]])
+            r = rows[r]
+            q = np.stack([x0 + (i + 0.5 * (r % 2)) * s, ys[r]], axis=1)
+            if len(q):
+                d = domain.sdf(q)
+                inside = d < 0
+                if exact:
+                    far = d > math.sqrt(2.0) * s
+                    outside[cy[r[far]], i[far]] = True
                 hq = np.ones(len(q))
                 if inside.any():
                     hq[inside] = h(q[inside])
@@ -255,6 +270,7 @@ def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity) -> FloatArray:
                 keep = grid.admit(q, hq, inside)
                 if keep.any():
                     out.append(q[keep])
+        before = outside
         s *= 0.5
     return np.concatenate(out) if out else np.empty((0, 2))
 
