@@ -8,6 +8,8 @@ feature_size / layers and gradation-limited where something does.
 
 from __future__ import annotations
 
+from itertools import product
+
 import numpy as np
 import pytest
 
@@ -322,3 +324,82 @@ def test_thin_feature_size_skips_only_parts_that_are_thick_for_h() -> None:
     strip = Rectangle((0.0, 0.0), (4.0, 0.2))
     assert isinstance(thin_feature_size(strip, 0.1, 2.0), GriddedSize)
     assert thin_feature_size(strip, 0.01, 2.0) is None
+
+
+def _full_search_thick(monkeypatch, domain, width, needed, back_to_back) -> bool:
+    """thick_everywhere as it was before the narrow first search: one search at the full
+    width, ``needed`` asked at every facing pair at once."""
+    import injmesh.sizing.features as features
+
+    with monkeypatch.context() as m:
+        m.setattr(features, "THICK_QUICK", 1.0)
+        m.setattr(features, "THICK_BATCH", 10**9)
+        return features.thick_everywhere(domain, width, 30.0, needed, back_to_back=back_to_back)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_narrow_first_search_answers_as_the_full_one(monkeypatch, seed: int) -> None:
+    """The narrow search and the batches of ``needed`` only shortcut a False: the answer is that
+    of the full search, on outlines whose facing walls lie below, within and above the narrow
+    width, with uniform and varying ``needed``, with and without back-to-back walls."""
+    from injmesh import shapes
+    from injmesh.sizing.features import THICK_QUICK, thick_everywhere
+
+    answers = set()
+    for domain, width in product(
+        (shapes.FAMILIES["neck"](seed).domain(),
+         shapes.coastline(seed, n_vertices=300, n_islands=2, strait=0.05).domain()),
+        (0.02, 0.06, 0.12, 0.3),
+    ):
+        for scale in (0.2, 0.5, 0.9):
+            for needed in (
+                lambda p, s=scale, w=width: np.full(len(p), s * w),
+                lambda p, s=scale, w=width: s * w * (0.6 + 0.4 * np.sin(7 * p[:, 0]) ** 2),
+            ):
+                for back in (0.0, 0.01):
+                    got = thick_everywhere(domain, width, 30.0, needed, back_to_back=back)
+                    assert got == _full_search_thick(monkeypatch, domain, width, needed, back)
+                    answers.add(got)
+    assert answers == {True, False}
+    assert THICK_QUICK > 1
+
+
+def test_walls_beyond_the_narrow_width_still_count(monkeypatch) -> None:
+    """A channel wider than the narrow search's width but narrower than ``needed``: the narrow
+    search finds nothing and the full one decides."""
+    import injmesh.sizing.features as features
+
+    channel = Rectangle((0, 0), (4, 0.2))
+    width = 0.3
+    assert 0.2 > width / features.THICK_QUICK
+    searched = []
+    walls = features._outline()
+    original = walls.facing_walls
+
+    def spy(*args):
+        searched.append(args[7])  # the width searched
+        return original(*args)
+
+    monkeypatch.setattr(walls, "facing_walls", spy)
+    assert not features.thick_everywhere(channel, width, 30.0, lambda p: np.full(len(p), 0.25))
+    assert searched == [width / features.THICK_QUICK, width]
+    searched.clear()
+    assert features.thick_everywhere(channel, width, 30.0, lambda p: np.full(len(p), 0.15))
+    assert searched == [width / features.THICK_QUICK, width]
+
+
+def test_a_thin_detailed_outline_asks_needed_at_few_points() -> None:
+    """On a detailed outline with necks far below the width, the narrow search and the first
+    batch settle it: ``needed`` is asked at five points of a few pairs, not at every pair."""
+    from injmesh import shapes
+    from injmesh.sizing.features import THICK_BATCH, thick_everywhere
+
+    domain = shapes.large(0, n_vertices=2000).domain()
+    asked = []
+
+    def needed(p):
+        asked.append(len(p))
+        return np.full(len(p), 0.05)
+
+    assert not thick_everywhere(domain, 0.06, 30.0, needed)
+    assert sum(asked) <= 5 * THICK_BATCH
