@@ -328,11 +328,12 @@ def test_thin_feature_size_skips_only_parts_that_are_thick_for_h() -> None:
 
 def _full_search_thick(monkeypatch, domain, width, needed, back_to_back) -> bool:
     """thick_everywhere as it was before the narrow first search: one search at the full
-    width, ``needed`` asked at every facing pair at once."""
+    width plus ``step``, ``needed`` asked at every facing pair at once."""
     import injmesh.sizing.features as features
 
     with monkeypatch.context() as m:
-        m.setattr(features, "THICK_QUICK", 1.0)
+        m.setattr(features, "_pair_reach", lambda v, seg_len, step, width: step)
+        m.setattr(features, "THICK_QUICK", ())
         m.setattr(features, "THICK_BATCH", 10**9)
         return features.thick_everywhere(domain, width, 30.0, needed, back_to_back=back_to_back)
 
@@ -361,7 +362,7 @@ def test_the_narrow_first_search_answers_as_the_full_one(monkeypatch, seed: int)
                     assert got == _full_search_thick(monkeypatch, domain, width, needed, back)
                     answers.add(got)
     assert answers == {True, False}
-    assert THICK_QUICK > 1
+    assert min(THICK_QUICK) > 1
 
 
 def test_walls_beyond_the_narrow_width_still_count(monkeypatch) -> None:
@@ -371,7 +372,7 @@ def test_walls_beyond_the_narrow_width_still_count(monkeypatch) -> None:
 
     channel = Rectangle((0, 0), (4, 0.2))
     width = 0.3
-    assert 0.2 > width / features.THICK_QUICK
+    assert 0.2 > width / min(features.THICK_QUICK)
     searched = []
     walls = features._outline()
     original = walls.facing_walls
@@ -382,10 +383,10 @@ def test_walls_beyond_the_narrow_width_still_count(monkeypatch) -> None:
 
     monkeypatch.setattr(walls, "facing_walls", spy)
     assert not features.thick_everywhere(channel, width, 30.0, lambda p: np.full(len(p), 0.25))
-    assert searched == [width / features.THICK_QUICK, width]
+    assert searched == [*(width / d for d in features.THICK_QUICK), width]
     searched.clear()
     assert features.thick_everywhere(channel, width, 30.0, lambda p: np.full(len(p), 0.15))
-    assert searched == [width / features.THICK_QUICK, width]
+    assert searched == [*(width / d for d in features.THICK_QUICK), width]
 
 
 def test_a_thin_detailed_outline_asks_needed_at_few_points() -> None:
@@ -403,3 +404,43 @@ def test_a_thin_detailed_outline_asks_needed_at_few_points() -> None:
 
     assert not thick_everywhere(domain, 0.06, 30.0, needed)
     assert sum(asked) <= 5 * THICK_BATCH
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_facing_pairs_lie_within_the_width_plus_the_longest_segment(seed: int) -> None:
+    """The kernel finds the same facing and back-to-back pairs when it looks for partners within
+    the width plus the longest segment (``_pair_reach``) as within the width plus ``step``."""
+    import math
+
+    from injmesh import shapes
+    from injmesh.kernels.outline import facing_walls
+    from injmesh.sizing.background import densify
+    from injmesh.sizing.features import _pair_reach, wall_frames
+
+    # A detailed outline (segments much shorter than the larger steps) and a coarse one.
+    rings = [shapes.large(seed, n_vertices=2000).rings[0],
+             shapes.coastline(seed, n_vertices=400, n_islands=0, strait=0.05).rings[0]]
+    cos = math.cos(math.radians(40.0))
+    shorter, found = 0, 0
+    for ring, step in product(rings, (0.002, 0.01, 0.05)):
+        # Far from the origin too: the margin must cover the rounding of large coordinates.
+        for offset in (0.0, 1e4):
+            v = densify(np.ascontiguousarray(ring, dtype=float) + offset, step)
+            n = len(v)
+            idx = np.arange(n)
+            nxt, prv = (idx + 1) % n, (idx - 1) % n
+            seg, seg_len, v_n, seg_n = wall_frames(v, nxt, prv)
+            for width, back in ((4 * step, 0.0), (4 * step, step), (step, 0.0)):
+                reach = _pair_reach(v, seg_len, step, width)
+                assert reach <= step
+                wide = facing_walls(v, prv, seg, seg_len, v_n, seg_n, max(width, back) + step,
+                                    width, back, cos, False)
+                tight = facing_walls(v, prv, seg, seg_len, v_n, seg_n, max(width, back) + reach,
+                                     width, back, cos, False)
+                assert wide[0] == tight[0]
+                as_set = [{(int(i), float(x), float(y), float(d)) for i, (x, y), d in
+                           zip(r[1], r[2], r[3], strict=True)} for r in (wide, tight)]
+                assert as_set[0] == as_set[1]
+                shorter += reach < 0.5 * step
+                found += len(as_set[0]) > 0
+    assert shorter > 0 and found > 0

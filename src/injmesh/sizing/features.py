@@ -98,9 +98,12 @@ PROBE_SLACK = 1.5
 THICK_STEPS = 4
 THICK_MAX_VERTICES = 1_000_000
 #: With a ``needed`` width, :func:`thick_everywhere` first looks for facing walls closer than
-#: its width divided by this (about a sixth of the vertex pairs), and asks ``needed`` at the
-#: closest pairs first, this many at a time (then four times more, and so on).
-THICK_QUICK = 4.0
+#: its width divided by each of these in turn (a sixteenth of it looks at about 1/200 of the
+#: vertex pairs, a quarter at about 1/16), while the cell grid has at most four cells per vertex
+#: plus THICK_QUICK_CELLS, and asks ``needed`` at the closest pairs first, THICK_BATCH at a
+#: time (then four times more, and so on).
+THICK_QUICK = (16.0, 4.0)
+THICK_QUICK_CELLS = 1 << 20
 THICK_BATCH = 256
 
 
@@ -298,24 +301,47 @@ def thick_everywhere(domain: Domain, width: float, corner_angle: float,
     cos = math.cos(math.radians(min(corner_angle + FACING_SLACK, 89.0)))
     walls = _outline()
 
+    reach = _pair_reach(v, seg_len, step, width)
+    extent = np.ptp(v, axis=0)
+
     def search(w: float) -> tuple[bool, NDArray[np.intp], FloatArray, FloatArray]:
-        return walls.facing_walls(v, prv, seg, seg_len, v_n, seg_n, max(w, back_to_back) + step,
+        return walls.facing_walls(v, prv, seg, seg_len, v_n, seg_n, max(w, back_to_back) + reach,
                                   w, back_to_back, cos, needed is None)
 
     if needed is not None:
         # The answer is False as soon as one back-to-back pair or one facing pair closer than
         # ``needed`` is found, and the pairs a narrower search finds (on the same vertices) are
-        # among those of the full one: on a thin domain the narrow search usually settles it,
-        # at a fraction of the pairs.  Else the full search decides, as it would have alone.
-        behind, a, foot, dist = search(width / THICK_QUICK)
-        if behind or _closer_than_needed(v[a], foot, dist, needed):
-            return False
+        # among those of the full one: on a thin domain a narrow search usually settles it, at
+        # a small fraction of the vertex pairs.  Else the full search decides, as it would have
+        # alone.  (A narrow search whose cell grid, cells as wide as its radius, would be much
+        # larger than the outline is left out.)
+        for divisor in THICK_QUICK:
+            w = width / divisor
+            cells = np.prod(extent / (max(w, back_to_back) + reach) + 1.0)
+            if cells > 4 * len(v) + THICK_QUICK_CELLS:
+                continue
+            behind, a, foot, dist = search(w)
+            if behind or _closer_than_needed(v[a], foot, dist, needed):
+                return False
     behind, a, foot, dist = search(width)
     if behind or not len(a):
         return not behind
     if needed is None:
         return False
     return not _closer_than_needed(v[a], foot, dist, needed)
+
+
+def _pair_reach(v: FloatArray, seg_len: FloatArray, step: float, width: float) -> float:
+    """How far beyond a width ``w`` :func:`thick_everywhere` looks for the partner vertex.
+
+    A facing or back-to-back pair is a vertex and a segment closer than w, so one end of the
+    segment is within w plus the longest segment of the vertex: the longest of ``seg_len``
+    (with a margin for rounding), on a detailed outline much shorter than ``step`` (which
+    bounds it after densifying).  The same pairs as with ``step``, fewer vertex pairs to look
+    at.
+    """
+    scale = float(np.abs(v).max()) + width
+    return min(step, float(seg_len.max()) * (1.0 + 1e-9) + 1e-9 * scale)
 
 
 def _closer_than_needed(start: FloatArray, foot: FloatArray, dist: FloatArray,
