@@ -444,3 +444,43 @@ def test_facing_pairs_lie_within_the_width_plus_the_longest_segment(seed: int) -
                 shorter += reach < 0.5 * step
                 found += len(as_set[0]) > 0
     assert shorter > 0 and found > 0
+
+
+def _nearest_reference(p, seg_a, seg_b, prev):
+    """``_nearest_on_boundary`` as it was: the default k-d tree's three nearest vertices."""
+    from scipy.spatial import cKDTree
+
+    _, near = cKDTree(seg_a).query(p, k=3)
+    cand = np.concatenate([near, prev[near]], axis=1)
+    a, b = seg_a[cand], seg_b[cand]
+    ab = b - a
+    L2 = np.maximum(np.einsum("nkj,nkj->nk", ab, ab), np.finfo(float).tiny)
+    t = np.clip(np.einsum("nkj,nkj->nk", p[:, None, :] - a, ab) / L2, 0.0, 1.0)
+    foot = a + t[..., None] * ab
+    dist = np.hypot(*(p[:, None, :] - foot).transpose(2, 0, 1))
+    best = np.argmin(dist, axis=1)
+    return dist[np.arange(len(p)), best], foot[np.arange(len(p)), best]
+
+
+@pytest.mark.parametrize("name", ["plates", "square", "large"])
+def test_nearest_boundary_points_are_those_of_the_default_tree(name: str) -> None:
+    """The faster tree gives the same nearest boundary points, also where several vertices are
+    equally far (grid nodes against grid-aligned walls, where the order of equidistant vertices
+    depends on the tree)."""
+    from scipy.spatial import cKDTree
+
+    from injmesh import shapes
+    from injmesh.sizing.background import make_background
+    from injmesh.sizing.features import _boundary, _nearest_on_boundary
+
+    domain = {"plates": shapes.FAMILIES["plates"](1).domain(), "square": Rectangle((0, 0), (1, 1)),
+              "large": shapes.large(0, n_vertices=2000).domain()}[name]
+    grid = make_background(domain, domain.diameter / 200)
+    seg_a, seg_b, prev = _boundary(domain, grid)
+    p = grid.nodes(grid.inside | grid.band)
+    dist, foot = _nearest_on_boundary(p, seg_a, seg_b, prev)
+    ref_dist, ref_foot = _nearest_reference(p, seg_a, seg_b, prev)
+    assert np.array_equal(dist, ref_dist) and np.array_equal(foot, ref_foot)
+    if name != "large":  # the case the fallback is for does occur
+        d = cKDTree(seg_a).query(p, k=4)[0]
+        assert np.any(d[:, 1:] == d[:, :-1])

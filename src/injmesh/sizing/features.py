@@ -167,8 +167,19 @@ def _nearest_on_boundary(
     from scipy.spatial import cKDTree
 
     k = min(NEAREST_VERTICES, len(seg_a))
-    _, near = cKDTree(seg_a).query(p, k=k)
-    near = near.reshape(len(p), k)
+    # Points deep inside are many times farther from the boundary than its vertices are apart.
+    # A tree whose cells are left as the splits make them (not shrunk to their points) answers
+    # such queries 5-8 times faster than the default one (1.3 -> 0.2 s for the 80,000
+    # medial-axis candidates of a 20,000-vertex outline).  The k nearest are the same when
+    # their distances and the next one's are all different; equidistant vertices (grid-aligned
+    # walls) come in an order that depends on the tree, so those few points ask the default
+    # tree, as before: the same nearest points either way.
+    kq = min(k + 1, len(seg_a))
+    dist_k, near = cKDTree(seg_a, balanced_tree=False, compact_nodes=False).query(p, k=kq)
+    dist_k, near = dist_k.reshape(len(p), kq), near.reshape(len(p), kq)[:, :k]
+    tied = np.any(dist_k[:, 1:] == dist_k[:, :-1], axis=1)
+    if tied.any():
+        near[tied] = cKDTree(seg_a).query(p[tied], k=k)[1].reshape(-1, k)
     cand = np.concatenate([near, prev[near]], axis=1)  # (n, 2k) segment ids
     a, b = seg_a[cand], seg_b[cand]
     ab = b - a
@@ -696,6 +707,7 @@ def effective_size(
     rate_ = 0.0 if g is None else g
     grid: Background | None = None
     thick = False
+    lo: float | None = None  # the probe's h_min, once asked
     if spacing is None and n_layers is not None and exact_boundary(dom) is not None:
         # Thick everywhere by the probe's sizes (the bound checked on the grid below): then
         # the grid only has to resolve h (h_min / 4), not thin parts (diameter / 256).
@@ -710,7 +722,8 @@ def effective_size(
             thick = float(h0[grid.inside].max()) <= bound and grid.spacing >= lo / CELLS_PER_H
             grid = grid if thick else None
     if grid is None:
-        grid, h0 = sampled_grid(h, dom, spacing, int(max_cells), rate_, dom.diameter / FEATURE_CELLS)
+        grid, h0 = sampled_grid(h, dom, spacing, int(max_cells), rate_, dom.diameter / FEATURE_CELLS,
+                                h_min=lo)
     inside = grid.inside
     h_max = float(h0[inside].max()) if inside.any() else np.inf
     if thick or n_layers is None or _thick(dom, h_max, n_layers, angle, grid.spacing, _probe_h(h, dom)):
