@@ -357,7 +357,7 @@ def test_the_narrow_first_search_answers_as_the_full_one(monkeypatch, seed: int)
                 lambda p, s=scale, w=width: np.full(len(p), s * w),
                 lambda p, s=scale, w=width: s * w * (0.6 + 0.4 * np.sin(7 * p[:, 0]) ** 2),
             ):
-                for back in (0.0, 0.01):
+                for back in (0.0, 0.01, 1.5 * width):
                     got = thick_everywhere(domain, width, 30.0, needed, back_to_back=back)
                     assert got == _full_search_thick(monkeypatch, domain, width, needed, back)
                     answers.add(got)

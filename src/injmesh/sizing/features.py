@@ -288,7 +288,11 @@ def thick_everywhere(domain: Domain, width: float, corner_angle: float,
     need more than ``THICK_MAX_VERTICES`` vertices: the caller then computes the feature size.
 
     The vertex pairs and the facing test are compiled (:mod:`injmesh.kernels.outline`): a
-    detailed outline has hundreds of vertex pairs per vertex within ``width``.
+    detailed outline has hundreds of vertex pairs per vertex within ``width``.  With
+    ``needed``, searches at a fraction of the width come first (``THICK_QUICK``): any pair they
+    find is one of the full search's, so one that counts settles the answer (False) at a small
+    part of the cost, and ``needed`` is asked at the closest pairs first, in batches.  The
+    answer is the full search's either way.
     """
     brep = exact_boundary(domain)
     if brep is None or not (width > 0 and math.isfinite(width)):
@@ -315,26 +319,26 @@ def thick_everywhere(domain: Domain, width: float, corner_angle: float,
     reach = _pair_reach(v, seg_len, step, width)
     extent = np.ptp(v, axis=0)
 
-    def search(w: float) -> tuple[bool, NDArray[np.intp], FloatArray, FloatArray]:
-        return walls.facing_walls(v, prv, seg, seg_len, v_n, seg_n, max(w, back_to_back) + reach,
-                                  w, back_to_back, cos, needed is None)
+    def search(w: float, back: float) -> tuple[bool, NDArray[np.intp], FloatArray, FloatArray]:
+        return walls.facing_walls(v, prv, seg, seg_len, v_n, seg_n, max(w, back) + reach,
+                                  w, back, cos, needed is None)
 
     if needed is not None:
         # The answer is False as soon as one back-to-back pair or one facing pair closer than
-        # ``needed`` is found, and the pairs a narrower search finds (on the same vertices) are
-        # among those of the full one: on a thin domain a narrow search usually settles it, at
-        # a small fraction of the vertex pairs.  Else the full search decides, as it would have
-        # alone.  (A narrow search whose cell grid, cells as wide as its radius, would be much
-        # larger than the outline is left out.)
+        # ``needed`` is found, and the pairs a narrower search finds (on the same vertices,
+        # back to back within the narrower width too) are among those of the full one: on a
+        # thin domain a narrow search usually settles it, at a small fraction of the vertex
+        # pairs.  Else the full search decides, as it would have alone.  (A narrow search whose
+        # cell grid, cells as wide as its radius, would be much larger than the outline is
+        # left out.)
         for divisor in THICK_QUICK:
             w = width / divisor
-            cells = np.prod(extent / (max(w, back_to_back) + reach) + 1.0)
-            if cells > 4 * len(v) + THICK_QUICK_CELLS:
+            if np.prod(extent / (w + reach) + 1.0) > 4 * len(v) + THICK_QUICK_CELLS:
                 continue
-            behind, a, foot, dist = search(w)
+            behind, a, foot, dist = search(w, min(back_to_back, w))
             if behind or _closer_than_needed(v[a], foot, dist, needed):
                 return False
-    behind, a, foot, dist = search(width)
+    behind, a, foot, dist = search(width, back_to_back)
     if behind or not len(a):
         return not behind
     if needed is None:
