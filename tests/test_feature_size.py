@@ -8,6 +8,8 @@ feature_size / layers and gradation-limited where something does.
 
 from __future__ import annotations
 
+from itertools import product
+
 import numpy as np
 import pytest
 
@@ -322,3 +324,163 @@ def test_thin_feature_size_skips_only_parts_that_are_thick_for_h() -> None:
     strip = Rectangle((0.0, 0.0), (4.0, 0.2))
     assert isinstance(thin_feature_size(strip, 0.1, 2.0), GriddedSize)
     assert thin_feature_size(strip, 0.01, 2.0) is None
+
+
+def _full_search_thick(monkeypatch, domain, width, needed, back_to_back) -> bool:
+    """thick_everywhere as it was before the narrow first search: one search at the full
+    width plus ``step``, ``needed`` asked at every facing pair at once."""
+    import injmesh.sizing.features as features
+
+    with monkeypatch.context() as m:
+        m.setattr(features, "_pair_reach", lambda v, seg_len, step, width: step)
+        m.setattr(features, "THICK_QUICK", ())
+        m.setattr(features, "THICK_BATCH", 10**9)
+        return features.thick_everywhere(domain, width, 30.0, needed, back_to_back=back_to_back)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_narrow_first_search_answers_as_the_full_one(monkeypatch, seed: int) -> None:
+    """The narrow search and the batches of ``needed`` only shortcut a False: the answer is that
+    of the full search, on outlines whose facing walls lie below, within and above the narrow
+    width, with uniform and varying ``needed``, with and without back-to-back walls."""
+    from injmesh import shapes
+    from injmesh.sizing.features import THICK_QUICK, thick_everywhere
+
+    answers = set()
+    for domain, width in product(
+        (shapes.FAMILIES["neck"](seed).domain(),
+         shapes.coastline(seed, n_vertices=300, n_islands=2, strait=0.05).domain()),
+        (0.02, 0.06, 0.12, 0.3),
+    ):
+        for scale in (0.2, 0.5, 0.9):
+            for needed in (
+                lambda p, s=scale, w=width: np.full(len(p), s * w),
+                lambda p, s=scale, w=width: s * w * (0.6 + 0.4 * np.sin(7 * p[:, 0]) ** 2),
+            ):
+                for back in (0.0, 0.01, 1.5 * width):
+                    got = thick_everywhere(domain, width, 30.0, needed, back_to_back=back)
+                    assert got == _full_search_thick(monkeypatch, domain, width, needed, back)
+                    answers.add(got)
+    assert answers == {True, False}
+    assert min(THICK_QUICK) > 1
+
+
+def test_walls_beyond_the_narrow_width_still_count(monkeypatch) -> None:
+    """A channel wider than the narrow search's width but narrower than ``needed``: the narrow
+    search finds nothing and the full one decides."""
+    import injmesh.sizing.features as features
+
+    channel = Rectangle((0, 0), (4, 0.2))
+    width = 0.3
+    assert 0.2 > width / min(features.THICK_QUICK)
+    searched = []
+    walls = features._outline()
+    original = walls.facing_walls
+
+    def spy(*args):
+        searched.append(args[7])  # the width searched
+        return original(*args)
+
+    monkeypatch.setattr(walls, "facing_walls", spy)
+    assert not features.thick_everywhere(channel, width, 30.0, lambda p: np.full(len(p), 0.25))
+    assert searched == [*(width / d for d in features.THICK_QUICK), width]
+    searched.clear()
+    assert features.thick_everywhere(channel, width, 30.0, lambda p: np.full(len(p), 0.15))
+    assert searched == [*(width / d for d in features.THICK_QUICK), width]
+
+
+def test_a_thin_detailed_outline_asks_needed_at_few_points() -> None:
+    """On a detailed outline with necks far below the width, the narrow search and the first
+    batch settle it: ``needed`` is asked at five points of a few pairs, not at every pair."""
+    from injmesh import shapes
+    from injmesh.sizing.features import THICK_BATCH, thick_everywhere
+
+    domain = shapes.large(0, n_vertices=2000).domain()
+    asked = []
+
+    def needed(p):
+        asked.append(len(p))
+        return np.full(len(p), 0.05)
+
+    assert not thick_everywhere(domain, 0.06, 30.0, needed)
+    assert sum(asked) <= 5 * THICK_BATCH
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_facing_pairs_lie_within_the_width_plus_the_longest_segment(seed: int) -> None:
+    """The kernel finds the same facing and back-to-back pairs when it looks for partners within
+    the width plus the longest segment (``_pair_reach``) as within the width plus ``step``."""
+    import math
+
+    from injmesh import shapes
+    from injmesh.kernels.outline import facing_walls
+    from injmesh.sizing.background import densify
+    from injmesh.sizing.features import _pair_reach, wall_frames
+
+    # A detailed outline (segments much shorter than the larger steps) and a coarse one.
+    rings = [shapes.large(seed, n_vertices=2000).rings[0],
+             shapes.coastline(seed, n_vertices=400, n_islands=0, strait=0.05).rings[0]]
+    cos = math.cos(math.radians(40.0))
+    shorter, found = 0, 0
+    for ring, step in product(rings, (0.002, 0.01, 0.05)):
+        # Far from the origin too: the margin must cover the rounding of large coordinates.
+        for offset in (0.0, 1e4):
+            v = densify(np.ascontiguousarray(ring, dtype=float) + offset, step)
+            n = len(v)
+            idx = np.arange(n)
+            nxt, prv = (idx + 1) % n, (idx - 1) % n
+            seg, seg_len, v_n, seg_n = wall_frames(v, nxt, prv)
+            for width, back in ((4 * step, 0.0), (4 * step, step), (step, 0.0)):
+                reach = _pair_reach(v, seg_len, step, width)
+                assert reach <= step
+                wide = facing_walls(v, prv, seg, seg_len, v_n, seg_n, max(width, back) + step,
+                                    width, back, cos, False)
+                tight = facing_walls(v, prv, seg, seg_len, v_n, seg_n, max(width, back) + reach,
+                                     width, back, cos, False)
+                assert wide[0] == tight[0]
+                as_set = [{(int(i), float(x), float(y), float(d)) for i, (x, y), d in
+                           zip(r[1], r[2], r[3], strict=True)} for r in (wide, tight)]
+                assert as_set[0] == as_set[1]
+                shorter += reach < 0.5 * step
+                found += len(as_set[0]) > 0
+    assert shorter > 0 and found > 0
+
+
+def _nearest_reference(p, seg_a, seg_b, prev):
+    """``_nearest_on_boundary`` as it was: the default k-d tree's three nearest vertices."""
+    from scipy.spatial import cKDTree
+
+    _, near = cKDTree(seg_a).query(p, k=3)
+    cand = np.concatenate([near, prev[near]], axis=1)
+    a, b = seg_a[cand], seg_b[cand]
+    ab = b - a
+    L2 = np.maximum(np.einsum("nkj,nkj->nk", ab, ab), np.finfo(float).tiny)
+    t = np.clip(np.einsum("nkj,nkj->nk", p[:, None, :] - a, ab) / L2, 0.0, 1.0)
+    foot = a + t[..., None] * ab
+    dist = np.hypot(*(p[:, None, :] - foot).transpose(2, 0, 1))
+    best = np.argmin(dist, axis=1)
+    return dist[np.arange(len(p)), best], foot[np.arange(len(p)), best]
+
+
+@pytest.mark.parametrize("name", ["plates", "square", "large"])
+def test_nearest_boundary_points_are_those_of_the_default_tree(name: str) -> None:
+    """The faster tree gives the same nearest boundary points, also where several vertices are
+    equally far (grid nodes against grid-aligned walls, where the order of equidistant vertices
+    depends on the tree)."""
+    from scipy.spatial import cKDTree
+
+    from injmesh import shapes
+    from injmesh.sizing.background import make_background
+    from injmesh.sizing.features import _boundary, _nearest_on_boundary
+
+    domain = {"plates": shapes.FAMILIES["plates"](1).domain(), "square": Rectangle((0, 0), (1, 1)),
+              "large": shapes.large(0, n_vertices=2000).domain()}[name]
+    grid = make_background(domain, domain.diameter / 200)
+    seg_a, seg_b, prev = _boundary(domain, grid)
+    p = grid.nodes(grid.inside | grid.band)
+    dist, foot = _nearest_on_boundary(p, seg_a, seg_b, prev)
+    ref_dist, ref_foot = _nearest_reference(p, seg_a, seg_b, prev)
+    assert np.array_equal(dist, ref_dist) and np.array_equal(foot, ref_foot)
+    if name != "large":  # the case the fallback is for does occur
+        d = cKDTree(seg_a).query(p, k=4)[0]
+        assert np.any(d[:, 1:] == d[:, :-1])
