@@ -30,6 +30,7 @@ import numba as nb
 import numpy as np
 
 LEAF = 4
+QUERY_LEAF = 8
 TWO_PI = 2.0 * math.pi
 _STACK = 256
 _TIES = 16
@@ -152,8 +153,8 @@ def piece_boxes(p0, p1, c, r, a0, sw):  # type: ignore[no-untyped-def]
 
 
 @nb.njit(cache=True)
-def build_bvh(lo, hi):  # type: ignore[no-untyped-def]
-    """A bounding-volume hierarchy over boxes ``lo, hi (m, 2)``.
+def build_bvh(lo, hi, leaf=LEAF):  # type: ignore[no-untyped-def]
+    """A bounding-volume hierarchy over boxes ``lo, hi (m, 2)``, at most ``leaf`` boxes per leaf.
 
     Returns ``node_lo, node_hi (k, 2)``, ``child (k,)`` (index of the first of two consecutive
     children, -1 for a leaf), ``start, count (k,)`` (a leaf's range in ``order``) and ``order``
@@ -197,7 +198,7 @@ def build_bvh(lo, hi):  # type: ignore[no-untyped-def]
         node_hi[node, 0], node_hi[node, 1] = bx1, by1
         start[node] = s
         count[node] = e - s
-        if e - s <= LEAF:
+        if e - s <= leaf:
             continue
         sub = order[s:e].copy()
         key = cx[sub] if mx1 - mx0 >= my1 - my0 else cy[sub]
@@ -213,21 +214,6 @@ def build_bvh(lo, hi):  # type: ignore[no-untyped-def]
     return node_lo[:n_nodes].copy(), node_hi[:n_nodes].copy(), child[:n_nodes].copy(), start[
         :n_nodes
     ].copy(), count[:n_nodes].copy(), order
-
-
-@nb.njit(cache=True, inline="always")
-def _box_d2(node_lo, node_hi, node, x, y):  # type: ignore[no-untyped-def]
-    dx = 0.0
-    if x < node_lo[node, 0]:
-        dx = node_lo[node, 0] - x
-    elif x > node_hi[node, 0]:
-        dx = x - node_hi[node, 0]
-    dy = 0.0
-    if y < node_lo[node, 1]:
-        dy = node_lo[node, 1] - y
-    elif y > node_hi[node, 1]:
-        dy = y - node_hi[node, 1]
-    return dx * dx + dy * dy
 
 
 # --- queries ---------------------------------------------------------------------------------
@@ -255,7 +241,96 @@ def _morton_order(q):  # type: ignore[no-untyped-def]
     return np.argsort(key, kind="mergesort")
 
 
+# Columns of the packed leaf table (one row per leaf slot, see leaf_table).
+_KIND, _AX, _AY, _BX, _BY = 0, 1, 2, 3, 4
+_SEG = 0.0  # a segment: columns 5, 6 its direction, 7 its squared length
+_ARC = 1.0  # an arc sweeping at most pi: 5, 6 centre, 7 radius, 8-11 the sweep's end rays
+_WIDE = 2.0  # an arc sweeping more than pi (same columns)
+_ROW = 12
+
+
 @nb.njit(cache=True)
+def leaf_table(p0, p1, c, r, sw):  # type: ignore[no-untyped-def]
+    """The pieces (already in leaf order) packed one row each, with what every nearest-point
+    test needs precomputed, so a leaf's pieces are one contiguous block of memory.
+
+    A row holds the kind (segment, arc sweeping at most pi, arc sweeping more), the start and
+    end point, then for a segment its direction and squared length, for an arc its centre,
+    radius and the two rays from the centre that bound its sweep counter-clockwise (start then
+    end: a clockwise arc sweeps counter-clockwise from its end point to its start point).
+    """
+    m = p0.shape[0]
+    t = np.zeros((m, _ROW))
+    for k in range(m):
+        t[k, _AX], t[k, _AY], t[k, _BX], t[k, _BY] = p0[k, 0], p0[k, 1], p1[k, 0], p1[k, 1]
+        if sw[k] == 0.0:
+            t[k, _KIND] = _SEG
+            ex, ey = p1[k, 0] - p0[k, 0], p1[k, 1] - p0[k, 1]
+            t[k, 5], t[k, 6], t[k, 7] = ex, ey, ex * ex + ey * ey
+            continue
+        t[k, _KIND] = _ARC if abs(sw[k]) <= math.pi else _WIDE
+        t[k, 5], t[k, 6], t[k, 7] = c[k, 0], c[k, 1], r[k]
+        ux, uy = p0[k, 0] - c[k, 0], p0[k, 1] - c[k, 1]
+        vx, vy = p1[k, 0] - c[k, 0], p1[k, 1] - c[k, 1]
+        if abs(sw[k]) >= TWO_PI:  # a full turn: every direction is in the sweep
+            t[k, _KIND] = _WIDE
+            vx, vy = ux, uy
+        if sw[k] < 0.0:
+            ux, uy, vx, vy = vx, vy, ux, uy
+        t[k, 8], t[k, 9], t[k, 10], t[k, 11] = ux, uy, vx, vy
+    return t
+
+
+@nb.njit(cache=True, inline="always")
+def _foot(t, j, x, y):  # type: ignore[no-untyped-def]
+    """piece_foot on row ``j`` of a leaf table, without trigonometry: a direction lies in an
+    arc's sweep by its turns from the sweep's two end rays (both left turns for a sweep up to
+    pi; either one for a wider sweep, so a full turn, whose rays coincide, holds every
+    direction)."""
+    ax, ay = t[j, _AX], t[j, _AY]
+    if t[j, _KIND] == _SEG:
+        ex, ey, l2 = t[j, 5], t[j, 6], t[j, 7]
+        s = (x - ax) * ex + (y - ay) * ey
+        if s <= 0.0 or l2 == 0.0:
+            dx, dy = x - ax, y - ay
+            return dx * dx + dy * dy, ax, ay, 0
+        if s >= l2:
+            bx, by = t[j, _BX], t[j, _BY]
+            dx, dy = x - bx, y - by
+            return dx * dx + dy * dy, bx, by, 2
+        u = s / l2
+        fx, fy = ax + u * ex, ay + u * ey
+        dx, dy = x - fx, y - fy
+        return dx * dx + dy * dy, fx, fy, 1
+    cx, cy, r = t[j, 5], t[j, 6], t[j, 7]
+    vx, vy = x - cx, y - cy
+    left0 = t[j, 8] * vy - t[j, 9] * vx >= 0.0
+    left1 = vx * t[j, 11] - vy * t[j, 10] >= 0.0
+    within = (left0 or left1) if t[j, _KIND] == _WIDE else (left0 and left1)
+    rho = math.sqrt(vx * vx + vy * vy)
+    if within and rho > 0.0:
+        g = rho - r
+        return g * g, cx + r * vx / rho, cy + r * vy / rho, 1
+    dx0, dy0 = x - ax, y - ay
+    bx, by = t[j, _BX], t[j, _BY]
+    dx1, dy1 = x - bx, y - by
+    d0 = dx0 * dx0 + dy0 * dy0
+    d1 = dx1 * dx1 + dy1 * dy1
+    if d1 < d0:
+        return d1, bx, by, 2
+    return d0, ax, ay, 0
+
+
+@nb.njit(cache=True, inline="always")
+def _box_gap(box, node, x, y):  # type: ignore[no-untyped-def]
+    """Squared distance from ``(x, y)`` to row ``node`` of a packed box table (lo x, lo y,
+    hi x, hi y)."""
+    dx = max(box[node, 0] - x, 0.0, x - box[node, 2])
+    dy = max(box[node, 1] - y, 0.0, y - box[node, 3])
+    return dx * dx + dy * dy
+
+
+@nb.njit(cache=True, inline="always")
 def nearest_point(x, y, hint, g, stack, tie_j, tie_w):  # type: ignore[no-untyped-def]
     """Nearest boundary point of ``(x, y)`` (local coordinates) for compiled callers.
 
@@ -264,16 +339,23 @@ def nearest_point(x, y, hint, g, stack, tie_j, tie_w):  # type: ignore[no-untype
     box distance), ``tie_j``, ``tie_w`` int work arrays of size ``_TIES``.  Returns the signed
     distance (negative inside), the foot, the piece and the leaf slot (the hint for the next
     point).
+
+    Inlined into its callers: a call would reference-count each of ``g``'s arrays per point,
+    which costs as much as the search on a small boundary.
     """
-    p0, p1, c, r, sw, prv, nxt = g[0], g[1], g[2], g[3], g[5], g[6], g[7]
-    node_lo, node_hi, child, start, count, order = g[8], g[9], g[10], g[11], g[12], g[13]
-    lp0, lp1, lc, lr, la0, lsw = g[14], g[15], g[16], g[17], g[18], g[19]
+    return _nearest_point(x, y, hint, g[0], g[1], g[2], g[3], g[5], g[6], g[7], g[10], g[11],
+                          g[12], g[13], g[20], g[21], stack, tie_j, tie_w)
+
+
+@nb.njit(cache=True, inline="always")
+def _nearest_point(x, y, hint, p0, p1, c, r, sw, prv, nxt, child, start, count, order, lt, box,
+                   stack, tie_j, tie_w):  # type: ignore[no-untyped-def]
     best = np.inf
     bj = -1
     fx = fy = 0.0
     nties = 0
     if hint >= 0:
-        d2, gx, gy, where = piece_foot(hint, x, y, lp0, lp1, lc, lr, la0, lsw)
+        d2, gx, gy, where = _foot(lt, hint, x, y)
         best, bj, fx, fy = d2, hint, gx, gy
         tie_j[0], tie_w[0] = hint, where
         nties = 1
@@ -290,7 +372,7 @@ def nearest_point(x, y, hint, g, stack, tie_j, tie_w):  # type: ignore[no-untype
             for j in range(start[node], start[node] + count[node]):
                 if j == hint:
                     continue
-                d2, gx, gy, where = piece_foot(j, x, y, lp0, lp1, lc, lr, la0, lsw)
+                d2, gx, gy, where = _foot(lt, j, x, y)
                 if d2 < best:
                     best, bj, fx, fy = d2, j, gx, gy
                     tie_j[0], tie_w[0] = j, where
@@ -299,8 +381,8 @@ def nearest_point(x, y, hint, g, stack, tie_j, tie_w):  # type: ignore[no-untype
                     tie_j[nties], tie_w[nties] = j, where
                     nties += 1
             continue
-        dl = _box_d2(node_lo, node_hi, ch, x, y)
-        dr = _box_d2(node_lo, node_hi, ch + 1, x, y)
+        dl = _box_gap(box, ch, x, y)
+        dr = _box_gap(box, ch + 1, x, y)
         # Push the farther child first so the nearer one is searched first.
         if dl <= dr:
             if dr <= best:
