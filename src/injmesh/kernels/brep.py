@@ -219,10 +219,24 @@ def build_bvh(lo, hi, leaf=LEAF):  # type: ignore[no-untyped-def]
 # --- queries ---------------------------------------------------------------------------------
 
 
+@nb.njit(cache=True, inline="always")
+def _spread16(v):  # type: ignore[no-untyped-def]
+    """The 16 low bits of ``v`` moved to the even bit positions."""
+    v &= 0xFFFF
+    v = (v | (v << 8)) & 0x00FF00FF
+    v = (v | (v << 4)) & 0x0F0F0F0F
+    v = (v | (v << 2)) & 0x33333333
+    return (v | (v << 1)) & 0x55555555
+
+
 @nb.njit(cache=True)
 def _morton_order(q):  # type: ignore[no-untyped-def]
     """An order of the points along a Z-curve over their box: neighbours in the order are
-    neighbours in the plane, so consecutive queries reuse the cache and the last answer."""
+    neighbours in the plane, so consecutive queries reuse the cache and the last answer.
+
+    The 32-bit keys are sorted by a stable radix sort (four byte-wide passes): the order a
+    stable comparison sort gives, in linear time (a comparison sort cost as much as the
+    queries it orders)."""
     n = q.shape[0]
     if n == 0:
         return np.arange(0)
@@ -231,14 +245,25 @@ def _morton_order(q):  # type: ignore[no-untyped-def]
     scale = 65535.0 / span if span > 0.0 else 0.0
     key = np.empty(n, dtype=np.int64)
     for i in range(n):
-        ix = int((q[i, 0] - x0) * scale)
-        iy = int((q[i, 1] - y0) * scale)
-        z = 0
-        for bit in range(16):
-            z |= ((ix >> bit) & 1) << (2 * bit)
-            z |= ((iy >> bit) & 1) << (2 * bit + 1)
-        key[i] = z
-    return np.argsort(key, kind="mergesort")
+        key[i] = _spread16(int((q[i, 0] - x0) * scale)) | (_spread16(int((q[i, 1] - y0) * scale)) << 1)
+    idx = np.arange(n)
+    tmp = np.empty(n, dtype=np.int64)
+    hist = np.empty(256, dtype=np.int64)
+    for shift in range(0, 32, 8):
+        hist[:] = 0
+        for i in range(n):
+            hist[(key[idx[i]] >> shift) & 255] += 1
+        total = 0
+        for b in range(256):
+            h = hist[b]
+            hist[b] = total
+            total += h
+        for i in range(n):
+            b = (key[idx[i]] >> shift) & 255
+            tmp[hist[b]] = idx[i]
+            hist[b] += 1
+        idx, tmp = tmp, idx
+    return idx
 
 
 # Columns of the packed leaf table (one row per leaf slot, see leaf_table).
@@ -424,9 +449,13 @@ def nearest(q, g):  # type: ignore[no-untyped-def]
     stack = np.empty(2 * _STACK)
     tie_j = np.empty(_TIES, dtype=np.int64)
     tie_w = np.empty(_TIES, dtype=np.int64)
+    p0, p1, c, r, sw, prv, nxt = g[0], g[1], g[2], g[3], g[5], g[6], g[7]
+    child, start, count, order, lt, box = g[10], g[11], g[12], g[13], g[20], g[21]
     last = -1
     for i in _morton_order(q):
-        d, fx, fy, k, last = nearest_point(q[i, 0], q[i, 1], last, g, stack, tie_j, tie_w)
+        d, fx, fy, k, last = _nearest_point(q[i, 0], q[i, 1], last, p0, p1, c, r, sw, prv, nxt,
+                                            child, start, count, order, lt, box, stack, tie_j,
+                                            tie_w)
         dist[i] = d
         foot[i, 0], foot[i, 1] = fx, fy
         piece[i] = k
