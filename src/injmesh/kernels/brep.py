@@ -443,22 +443,37 @@ def nearest(q, g):  # type: ignore[no-untyped-def]
     pieces in leaf order, so a leaf's pieces are contiguous in memory).
     """
     n = q.shape[0]
-    dist = np.empty(n)
-    foot = np.empty((n, 2))
-    piece = np.empty(n, dtype=np.int64)
+    zorder = _morton_order(q)
+    # Gather the points into Z-order and scatter the answers back in loops of their own: the
+    # query loop then reads and writes memory in sequence, and the random accesses, being
+    # independent of one another, overlap (interleaved with the queries, they cost as much).
+    qz = np.empty((n, 2))
+    for s in range(n):
+        qz[s, 0], qz[s, 1] = q[zorder[s], 0], q[zorder[s], 1]
+    dz = np.empty(n)
+    fz = np.empty((n, 2))
+    kz = np.empty(n, dtype=np.int64)
     stack = np.empty(2 * _STACK)
     tie_j = np.empty(_TIES, dtype=np.int64)
     tie_w = np.empty(_TIES, dtype=np.int64)
     p0, p1, c, r, sw, prv, nxt = g[0], g[1], g[2], g[3], g[5], g[6], g[7]
     child, start, count, order, lt, box = g[10], g[11], g[12], g[13], g[20], g[21]
     last = -1
-    for i in _morton_order(q):
-        d, fx, fy, k, last = _nearest_point(q[i, 0], q[i, 1], last, p0, p1, c, r, sw, prv, nxt,
+    for s in range(n):
+        d, fx, fy, k, last = _nearest_point(qz[s, 0], qz[s, 1], last, p0, p1, c, r, sw, prv, nxt,
                                             child, start, count, order, lt, box, stack, tie_j,
                                             tie_w)
-        dist[i] = d
-        foot[i, 0], foot[i, 1] = fx, fy
-        piece[i] = k
+        dz[s] = d
+        fz[s, 0], fz[s, 1] = fx, fy
+        kz[s] = k
+    dist = np.empty(n)
+    foot = np.empty((n, 2))
+    piece = np.empty(n, dtype=np.int64)
+    for s in range(n):
+        i = zorder[s]
+        dist[i] = dz[s]
+        foot[i, 0], foot[i, 1] = fz[s, 0], fz[s, 1]
+        piece[i] = kz[s]
     return dist, foot, piece
 
 
