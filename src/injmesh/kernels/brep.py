@@ -83,7 +83,7 @@ def piece_foot(k, x, y, p0, p1, c, r, a0, sw):  # type: ignore[no-untyped-def]
     return d0, p0[k, 0], p0[k, 1], 0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def tangent(k, at_end, p0, p1, c, sw):  # type: ignore[no-untyped-def]
     """Direction of travel of piece ``k`` at its start (``at_end`` False) or end."""
     if sw[k] == 0.0:
@@ -97,7 +97,7 @@ def tangent(k, at_end, p0, p1, c, sw):  # type: ignore[no-untyped-def]
     return vy, -vx
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _inside(k, where, x, y, p0, p1, c, r, sw, prv, nxt):  # type: ignore[no-untyped-def]
     """Whether ``(x, y)`` is inside, judged from its foot on piece ``k`` (see piece_foot)."""
     if where == 1:
