@@ -355,11 +355,29 @@ def _box_gap(box, node, x, y):  # type: ignore[no-untyped-def]
     return dx * dx + dy * dy
 
 
+@nb.njit(cache=True)
+def tree_links(child, start, count, m):  # type: ignore[no-untyped-def]
+    """``parent (k,)`` of every node of a hierarchy (-1 for the root) and ``leaf_of (m,)``,
+    the leaf holding every leaf slot: the links a search needs to start at a leaf."""
+    k = child.shape[0]
+    parent = np.full(k, -1, dtype=np.int64)
+    leaf_of = np.zeros(m, dtype=np.int64)
+    for node in range(k):
+        ch = child[node]
+        if ch >= 0:
+            parent[ch] = node
+            parent[ch + 1] = node
+        else:
+            for j in range(start[node], start[node] + count[node]):
+                leaf_of[j] = node
+    return parent, leaf_of
+
+
 @nb.njit(cache=True, inline="always")
 def nearest_point(x, y, hint, g, stack, tie_j, tie_w):  # type: ignore[no-untyped-def]
     """Nearest boundary point of ``(x, y)`` (local coordinates) for compiled callers.
 
-    ``g`` is :meth:`BRep.kernel_data`'s tuple; ``hint`` a leaf slot to try first (the answer
+    ``g`` is :meth:`BRep.kernel_data`'s tuple; ``hint`` a leaf slot to start from (the answer
     for a nearby point, or -1); ``stack`` a float work array of size ``2 * _STACK`` (node and
     box distance), ``tie_j``, ``tie_w`` int work arrays of size ``_TIES``.  Returns the signed
     distance (negative inside), the foot, the piece and the leaf slot (the hint for the next
@@ -369,60 +387,68 @@ def nearest_point(x, y, hint, g, stack, tie_j, tie_w):  # type: ignore[no-untype
     which costs as much as the search on a small boundary.
     """
     return _nearest_point(x, y, hint, g[0], g[1], g[2], g[3], g[5], g[6], g[7], g[10], g[11],
-                          g[12], g[13], g[20], g[21], stack, tie_j, tie_w)
+                          g[12], g[13], g[20], g[21], g[22], g[23], stack, tie_j, tie_w)
 
 
 @nb.njit(cache=True, inline="always")
 def _nearest_point(x, y, hint, p0, p1, c, r, sw, prv, nxt, child, start, count, order, lt, box,
-                   stack, tie_j, tie_w):  # type: ignore[no-untyped-def]
+                   parent, leaf_of, stack, tie_j, tie_w):  # type: ignore[no-untyped-def]
+    # With a hint the search starts at the hint's leaf and climbs to the root, searching each
+    # ancestor's other child only if its box is nearer than the best piece so far: for a
+    # nearby point, one box test per level instead of a descent from the root that tests
+    # both children at every level and pushes and pops the path.
     best = np.inf
     bj = -1
     fx = fy = 0.0
     nties = 0
-    if hint >= 0:
-        d2, gx, gy, where = _foot(lt, hint, x, y)
-        best, bj, fx, fy = d2, hint, gx, gy
-        tie_j[0], tie_w[0] = hint, where
-        nties = 1
-    stack[0] = 0.0
+    up = leaf_of[hint] if hint >= 0 else 0
+    stack[0] = up
     stack[1] = 0.0
     sp = 1
-    while sp > 0:
-        sp -= 1
-        if stack[2 * sp + 1] > best:
-            continue  # best has improved since this node was pushed
-        node = int(stack[2 * sp])
-        ch = child[node]
-        if ch < 0:
-            for j in range(start[node], start[node] + count[node]):
-                if j == hint:
-                    continue
-                d2, gx, gy, where = _foot(lt, j, x, y)
-                if d2 < best:
-                    best, bj, fx, fy = d2, j, gx, gy
-                    tie_j[0], tie_w[0] = j, where
-                    nties = 1
-                elif d2 == best and nties < _TIES:
-                    tie_j[nties], tie_w[nties] = j, where
-                    nties += 1
-            continue
-        dl = _box_gap(box, ch, x, y)
-        dr = _box_gap(box, ch + 1, x, y)
-        # Push the farther child first so the nearer one is searched first.
-        if dl <= dr:
-            if dr <= best:
-                stack[2 * sp], stack[2 * sp + 1] = ch + 1, dr
-                sp += 1
-            if dl <= best:
-                stack[2 * sp], stack[2 * sp + 1] = ch, dl
-                sp += 1
-        else:
-            if dl <= best:
-                stack[2 * sp], stack[2 * sp + 1] = ch, dl
-                sp += 1
-            if dr <= best:
-                stack[2 * sp], stack[2 * sp + 1] = ch + 1, dr
-                sp += 1
+    while True:
+        while sp > 0:
+            sp -= 1
+            if stack[2 * sp + 1] > best:
+                continue  # best has improved since this node was pushed
+            node = int(stack[2 * sp])
+            ch = child[node]
+            if ch < 0:
+                for j in range(start[node], start[node] + count[node]):
+                    d2, gx, gy, where = _foot(lt, j, x, y)
+                    if d2 < best:
+                        best, bj, fx, fy = d2, j, gx, gy
+                        tie_j[0], tie_w[0] = j, where
+                        nties = 1
+                    elif d2 == best and nties < _TIES:
+                        tie_j[nties], tie_w[nties] = j, where
+                        nties += 1
+                continue
+            dl = _box_gap(box, ch, x, y)
+            dr = _box_gap(box, ch + 1, x, y)
+            # Push the farther child first so the nearer one is searched first.
+            if dl <= dr:
+                if dr <= best:
+                    stack[2 * sp], stack[2 * sp + 1] = ch + 1, dr
+                    sp += 1
+                if dl <= best:
+                    stack[2 * sp], stack[2 * sp + 1] = ch, dl
+                    sp += 1
+            else:
+                if dl <= best:
+                    stack[2 * sp], stack[2 * sp + 1] = ch, dl
+                    sp += 1
+                if dr <= best:
+                    stack[2 * sp], stack[2 * sp + 1] = ch + 1, dr
+                    sp += 1
+        if up <= 0:
+            break  # the root's subtree is done
+        above = parent[up]
+        other = 2 * child[above] + 1 - up  # the two children of a node are consecutive
+        up = above
+        gap = _box_gap(box, other, x, y)
+        if gap <= best:
+            stack[0], stack[1] = other, gap
+            sp = 1
     # Ties at the nearest distance: the same vertex reached from two pieces, or several loops
     # through one point (operands touching there): inside any wedge is inside.
     inside = False
@@ -458,11 +484,12 @@ def nearest(q, g):  # type: ignore[no-untyped-def]
     tie_w = np.empty(_TIES, dtype=np.int64)
     p0, p1, c, r, sw, prv, nxt = g[0], g[1], g[2], g[3], g[5], g[6], g[7]
     child, start, count, order, lt, box = g[10], g[11], g[12], g[13], g[20], g[21]
+    parent, leaf_of = g[22], g[23]
     last = -1
     for s in range(n):
         d, fx, fy, k, last = _nearest_point(qz[s, 0], qz[s, 1], last, p0, p1, c, r, sw, prv, nxt,
-                                            child, start, count, order, lt, box, stack, tie_j,
-                                            tie_w)
+                                            child, start, count, order, lt, box, parent, leaf_of,
+                                            stack, tie_j, tie_w)
         dz[s] = d
         fz[s, 0], fz[s, 1] = fx, fy
         kz[s] = k
