@@ -162,7 +162,8 @@ class BRep(Domain):
             table = k.leaf_table(*leaf[:4], leaf[5])
             boxes = np.ascontiguousarray(np.concatenate([tree[0], tree[1]], axis=1))
             links = k.tree_links(tree[2], tree[3], tree[4], len(order))
-            self._index = (lo, hi, *tree, leaf, table, boxes, *links)
+            side = k.side_table(self._p0, self._p1, self._c, self._sw, self._prv, self._nxt, order)
+            self._index = (lo, hi, *tree, leaf, table, boxes, *links, side)
         return self._index
 
     def kernel_data(self) -> tuple[FloatArray, tuple[Any, ...]]:
@@ -174,10 +175,11 @@ class BRep(Domain):
         next), the hierarchy (8-13: node boxes' low and high corners, first child, leaf start
         and count, leaf order), the pieces in leaf order (14-19, as 0-5), the packed leaf
         table (20, :func:`~injmesh.kernels.brep.leaf_table`) and the node boxes as one
-        ``(k, 4)`` table (21), every node's parent (22) and every leaf slot's leaf (23)."""
-        _, _, node_lo, node_hi, child, start, count, order, leaf, table, boxes, parent, leaf_of = self._bvh()
+        ``(k, 4)`` table (21), every node's parent (22), every leaf slot's leaf (23) and the
+        side table the inside test reads (24, :func:`~injmesh.kernels.brep.side_table`)."""
+        _, _, node_lo, node_hi, child, start, count, order, leaf, *search = self._bvh()
         g = (self._p0, self._p1, self._c, self._r, self._a0, self._sw, self._prv, self._nxt,
-             node_lo, node_hi, child, start, count, order, *leaf, table, boxes, parent, leaf_of)
+             node_lo, node_hi, child, start, count, order, *leaf, *search)
         return self._origin, g
 
     def _query(self, p: FloatArray) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:

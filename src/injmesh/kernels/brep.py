@@ -98,22 +98,21 @@ def tangent(k, at_end, p0, p1, c, sw):  # type: ignore[no-untyped-def]
 
 
 @nb.njit(cache=True, inline="always")
-def _inside(k, where, x, y, p0, p1, c, r, sw, prv, nxt):  # type: ignore[no-untyped-def]
-    """Whether ``(x, y)`` is inside, judged from its foot on piece ``k`` (see piece_foot)."""
+def _inside(lt, st, j, where, x, y):  # type: ignore[no-untyped-def]
+    """Whether ``(x, y)`` is inside, judged from its foot on the piece in leaf slot ``j``
+    (``where`` as piece_foot's), from the leaf table ``lt`` and the side table ``st``."""
     if where == 1:
-        if sw[k] == 0.0:
-            ex, ey = p1[k, 0] - p0[k, 0], p1[k, 1] - p0[k, 1]
-            return ex * (y - p0[k, 1]) - ey * (x - p0[k, 0]) > 0.0
-        rho = math.hypot(x - c[k, 0], y - c[k, 1])
-        return rho < r[k] if sw[k] > 0.0 else rho > r[k]
+        if lt[j, _KIND] == _SEG:
+            ex, ey = lt[j, 5], lt[j, 6]
+            return ex * (y - lt[j, _AY]) - ey * (x - lt[j, _AX]) > 0.0
+        rho = math.hypot(x - lt[j, 5], y - lt[j, 6])
+        return rho < lt[j, 7] if st[j, 0] > 0.0 else rho > lt[j, 7]
     if where == 0:
-        vx, vy = p0[k, 0], p0[k, 1]
-        ux, uy = tangent(prv[k], True, p0, p1, c, sw)
-        wx, wy = tangent(k, False, p0, p1, c, sw)
+        vx, vy = lt[j, _AX], lt[j, _AY]
+        ux, uy, wx, wy = st[j, 1], st[j, 2], st[j, 3], st[j, 4]
     else:
-        vx, vy = p1[k, 0], p1[k, 1]
-        ux, uy = tangent(k, True, p0, p1, c, sw)
-        wx, wy = tangent(nxt[k], False, p0, p1, c, sw)
+        vx, vy = lt[j, _BX], lt[j, _BY]
+        ux, uy, wx, wy = st[j, 5], st[j, 6], st[j, 7], st[j, 8]
     ex, ey = x - vx, y - vy
     cu = ux * ey - uy * ex
     cw = wx * ey - wy * ex
@@ -123,6 +122,25 @@ def _inside(k, where, x, y, p0, p1, c, r, sw, prv, nxt):  # type: ignore[no-unty
     if turn > 0.0 or (turn == 0.0 and ux * wx + uy * wy < 0.0):
         return cu > 0.0 and cw > 0.0
     return cu > 0.0 or cw > 0.0
+
+
+@nb.njit(cache=True)
+def side_table(p0, p1, c, sw, prv, nxt, order):  # type: ignore[no-untyped-def]
+    """What the inside test needs of each piece, one row per leaf slot (piece ``order[j]``):
+    the sweep's sign (0 for a segment) and the directions of travel into and out of its start
+    (the previous piece's at its end, its own at its start) and of its end (its own, the next
+    piece's at its start).  In leaf order, so a search reads the pieces' neighbours from the
+    rows it just searched instead of from anywhere in the boundary."""
+    m = order.shape[0]
+    st = np.empty((m, 9))
+    for j in range(m):
+        k = order[j]
+        st[j, 0] = 0.0 if sw[k] == 0.0 else (1.0 if sw[k] > 0.0 else -1.0)
+        st[j, 1], st[j, 2] = tangent(prv[k], True, p0, p1, c, sw)
+        st[j, 3], st[j, 4] = tangent(k, False, p0, p1, c, sw)
+        st[j, 5], st[j, 6] = tangent(k, True, p0, p1, c, sw)
+        st[j, 7], st[j, 8] = tangent(nxt[k], False, p0, p1, c, sw)
+    return st
 
 
 # --- the hierarchy ---------------------------------------------------------------------------
@@ -386,13 +404,13 @@ def nearest_point(x, y, hint, g, stack, tie_j, tie_w):  # type: ignore[no-untype
     Inlined into its callers: a call would reference-count each of ``g``'s arrays per point,
     which costs as much as the search on a small boundary.
     """
-    return _nearest_point(x, y, hint, g[0], g[1], g[2], g[3], g[5], g[6], g[7], g[10], g[11],
-                          g[12], g[13], g[20], g[21], g[22], g[23], stack, tie_j, tie_w)
+    return _nearest_point(x, y, hint, g[10], g[11], g[12], g[13], g[20], g[21], g[22], g[23],
+                          g[24], stack, tie_j, tie_w)
 
 
 @nb.njit(cache=True, inline="always")
-def _nearest_point(x, y, hint, p0, p1, c, r, sw, prv, nxt, child, start, count, order, lt, box,
-                   parent, leaf_of, stack, tie_j, tie_w):  # type: ignore[no-untyped-def]
+def _nearest_point(x, y, hint, child, start, count, order, lt, box, parent, leaf_of, st, stack,
+                   tie_j, tie_w):  # type: ignore[no-untyped-def]
     # With a hint the search starts at the hint's leaf and climbs to the root, searching each
     # ancestor's other child only if its box is nearer than the best piece so far: for a
     # nearby point, one box test per level instead of a descent from the root that tests
@@ -453,7 +471,7 @@ def _nearest_point(x, y, hint, p0, p1, c, r, sw, prv, nxt, child, start, count, 
     # through one point (operands touching there): inside any wedge is inside.
     inside = False
     for t in range(nties):
-        if _inside(order[tie_j[t]], tie_w[t], x, y, p0, p1, c, r, sw, prv, nxt):
+        if _inside(lt, st, tie_j[t], tie_w[t], x, y):
             inside = True
             break
     d = math.sqrt(best)
@@ -482,14 +500,12 @@ def nearest(q, g):  # type: ignore[no-untyped-def]
     stack = np.empty(2 * _STACK)
     tie_j = np.empty(_TIES, dtype=np.int64)
     tie_w = np.empty(_TIES, dtype=np.int64)
-    p0, p1, c, r, sw, prv, nxt = g[0], g[1], g[2], g[3], g[5], g[6], g[7]
     child, start, count, order, lt, box = g[10], g[11], g[12], g[13], g[20], g[21]
-    parent, leaf_of = g[22], g[23]
+    parent, leaf_of, st = g[22], g[23], g[24]
     last = -1
     for s in range(n):
-        d, fx, fy, k, last = _nearest_point(qz[s, 0], qz[s, 1], last, p0, p1, c, r, sw, prv, nxt,
-                                            child, start, count, order, lt, box, parent, leaf_of,
-                                            stack, tie_j, tie_w)
+        d, fx, fy, k, last = _nearest_point(qz[s, 0], qz[s, 1], last, child, start, count, order,
+                                            lt, box, parent, leaf_of, st, stack, tie_j, tie_w)
         dz[s] = d
         fz[s, 0], fz[s, 1] = fx, fy
         kz[s] = k
