@@ -169,3 +169,38 @@ def test_nearest_is_deterministic_and_order_free() -> None:
     assert np.array_equal(d, d2) and np.array_equal(foot, foot2) and np.array_equal(piece, piece2)
     single = np.array([b._query(q[i:i + 1])[0][0] for i in range(0, 5000, 50)])
     np.testing.assert_allclose(single, d[::50], rtol=1e-14, atol=1e-15)
+
+
+def test_nearest_point_from_any_hint() -> None:
+    """The search climbs from the hint's leaf to the root: any leaf slot, however far from the
+    point, gives the same distance and foot as the search without a hint."""
+    import numba
+
+    from injmesh import Polygon
+    from injmesh.kernels import brep as kb
+
+    @numba.njit
+    def from_hints(q, hints, g):  # type: ignore[no-untyped-def]
+        stack = np.empty(2 * kb._STACK)
+        tie_j = np.empty(kb._TIES, dtype=np.int64)
+        tie_w = np.empty(kb._TIES, dtype=np.int64)
+        out = np.empty((len(q), 3))
+        for i in range(len(q)):
+            d, fx, fy, _, _ = kb.nearest_point(q[i, 0], q[i, 1], hints[i], g, stack, tie_j, tie_w)
+            out[i, 0], out[i, 1], out[i, 2] = d, fx, fy
+        return out
+
+    rng = np.random.default_rng(11)
+    t = np.sort(rng.uniform(0, 2 * np.pi, 400))
+    rad = 1 + 0.3 * np.sin(7 * t) + 0.05 * rng.random(400)
+    outer = np.stack([rad * np.cos(t), rad * np.sin(t)], axis=1)
+    hole = 0.2 * np.stack([np.cos(-t[::8]), np.sin(-t[::8])], axis=1)
+    dom = Polygon(outer, holes=[hole])
+    origin, g = dom.kernel_data()
+    assert len(g[10]) > 63  # a hierarchy several levels deep
+    q = np.ascontiguousarray(rng.uniform(-1.6, 1.6, (2000, 2)) - origin)
+    d, foot, _ = dom._query(q + origin)
+    for hints in (np.full(len(q), -1), rng.integers(0, dom.n_pieces, len(q))):
+        out = from_hints(q, hints, g)
+        np.testing.assert_array_equal(out[:, 0], d)
+        np.testing.assert_array_equal(out[:, 1:] + origin, foot)

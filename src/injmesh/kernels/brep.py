@@ -14,8 +14,11 @@ A boundary is a set of *pieces*, each a line segment or a circular arc, stored i
 ``prv, nxt (m,)``
     The pieces before and after each one along its loop.
 
-A bounding-volume hierarchy over the pieces' boxes (median splits, at most ``LEAF`` pieces per
-leaf) answers nearest-piece queries in O(log m) for points anywhere in the plane.  The sign of
+A bounding-volume hierarchy over the pieces' boxes (median splits, at most ``QUERY_LEAF``
+pieces per leaf) answers nearest-piece queries in O(log m) for points anywhere in the plane.
+A search starts at the leaf that answered a nearby point and climbs to the root; it reads the
+pieces from tables in leaf order with what each test needs precomputed (:func:`leaf_table`,
+:func:`side_table`) and tests arcs without trigonometry.  The sign of
 the distance comes from the nearest feature alone (the side of a segment or arc, or the wedge at
 a vertex), which is exact wherever the distance is not itself at rounding level; where several
 loops pass through the nearest vertex (two operands touching at a point) the point is inside if
@@ -29,8 +32,8 @@ import math
 import numba as nb
 import numpy as np
 
-LEAF = 4
-QUERY_LEAF = 8
+LEAF = 4  # build_bvh's default, for box_pairs (overlap queries want small leaves)
+QUERY_LEAF = 8  # for nearest-point searches: a shallower tree, contiguous leaves
 TWO_PI = 2.0 * math.pi
 _STACK = 256
 _TIES = 16
@@ -482,8 +485,8 @@ def _nearest_point(x, y, hint, child, start, count, order, lt, box, parent, leaf
 def nearest(q, g):  # type: ignore[no-untyped-def]
     """Signed distance (negative inside), foot point and piece of each point of ``q (n, 2)``.
 
-    Points are visited along a Z-curve and each search starts from the previous point's
-    nearest piece, which bounds the search from the first step (the hierarchy stores the
+    Points are visited along a Z-curve and each search starts from the leaf of the previous
+    point's nearest piece, which bounds the search from the first step (the tables store the
     pieces in leaf order, so a leaf's pieces are contiguous in memory).
     """
     n = q.shape[0]
