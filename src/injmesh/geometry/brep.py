@@ -175,7 +175,7 @@ class BRep(Domain):
         next), the hierarchy (8-13: node boxes' low and high corners, first child, leaf start
         and count, leaf order), the pieces in leaf order (14-19, as 0-5), the packed leaf
         table (20, :func:`~injmesh.kernels.brep.leaf_table`) and the node boxes as one
-        ``(k, 4)`` table (21), every node's parent (22), every leaf slot's leaf (23) and the
+        ``(k, 4)`` table (21), every node's parent and sibling (22), every leaf slot's leaf (23) and the
         side table the inside test reads (24, :func:`~injmesh.kernels.brep.side_table`)."""
         _, _, node_lo, node_hi, child, start, count, order, leaf, *search = self._bvh()
         g = (self._p0, self._p1, self._c, self._r, self._a0, self._sw, self._prv, self._nxt,

@@ -378,16 +378,17 @@ def _box_gap(box, node, x, y):  # type: ignore[no-untyped-def]
 
 @nb.njit(cache=True)
 def tree_links(child, start, count, m):  # type: ignore[no-untyped-def]
-    """``parent (k,)`` of every node of a hierarchy (-1 for the root) and ``leaf_of (m,)``,
-    the leaf holding every leaf slot: the links a search needs to start at a leaf."""
+    """``up (k, 2)``, every node's parent and the parent's other child (-1 for the root), and
+    ``leaf_of (m,)``, the leaf holding every leaf slot: the links a search needs to start at
+    a leaf (both of a level's links in one row, so climbing waits for one load per level)."""
     k = child.shape[0]
-    parent = np.full(k, -1, dtype=np.int64)
+    parent = np.full((k, 2), -1, dtype=np.int64)
     leaf_of = np.zeros(m, dtype=np.int64)
     for node in range(k):
         ch = child[node]
         if ch >= 0:
-            parent[ch] = node
-            parent[ch + 1] = node
+            parent[ch, 0], parent[ch, 1] = node, ch + 1
+            parent[ch + 1, 0], parent[ch + 1, 1] = node, ch
         else:
             for j in range(start[node], start[node] + count[node]):
                 leaf_of[j] = node
@@ -463,9 +464,8 @@ def _nearest_point(x, y, hint, child, start, count, order, lt, box, parent, leaf
                     sp += 1
         if up <= 0:
             break  # the root's subtree is done
-        above = parent[up]
-        other = 2 * child[above] + 1 - up  # the two children of a node are consecutive
-        up = above
+        other = parent[up, 1]
+        up = parent[up, 0]
         gap = _box_gap(box, other, x, y)
         if gap <= best:
             stack[0], stack[1] = other, gap
