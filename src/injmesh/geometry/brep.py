@@ -155,20 +155,31 @@ class BRep(Domain):
         if self._index is None:
             k = _kernels()
             lo, hi = k.piece_boxes(self._p0, self._p1, self._c, self._r, self._a0, self._sw)
-            tree = k.build_bvh(lo, hi)
+            tree = k.build_bvh(lo, hi, k.QUERY_LEAF)
             order = tree[-1]
             leaf = tuple(np.ascontiguousarray(a[order]) for a in (self._p0, self._p1, self._c, self._r,
                                                                   self._a0, self._sw))
-            self._index = (lo, hi, *tree, leaf)
+            table = k.leaf_table(*leaf[:4], leaf[5])
+            boxes = np.ascontiguousarray(np.concatenate([tree[0], tree[1]], axis=1))
+            links = k.tree_links(tree[2], tree[3], tree[4], len(order))
+            side = k.side_table(self._p0, self._p1, self._c, self._sw, self._prv, self._nxt, order)
+            self._index = (lo, hi, *tree, leaf, table, boxes, *links, side)
         return self._index
 
     def kernel_data(self) -> tuple[FloatArray, tuple[Any, ...]]:
         """``(origin, g)``: the reference point and the flat arrays (pieces and hierarchy) that
         :func:`injmesh.kernels.brep.nearest_point` takes, for compiled callers that query the
-        boundary from inside their own loops (coordinates minus ``origin``)."""
-        _, _, node_lo, node_hi, child, start, count, order, leaf = self._bvh()
+        boundary from inside their own loops (coordinates minus ``origin``).
+
+        ``g`` holds the pieces (0-7: start, end, centre, radius, start angle, sweep, previous,
+        next), the hierarchy (8-13: node boxes' low and high corners, first child, leaf start
+        and count, leaf order), the pieces in leaf order (14-19, as 0-5), the packed leaf
+        table (20, :func:`~injmesh.kernels.brep.leaf_table`) and the node boxes as one
+        ``(k, 4)`` table (21), every node's parent and sibling (22), every leaf slot's leaf (23) and the
+        side table the inside test reads (24, :func:`~injmesh.kernels.brep.side_table`)."""
+        _, _, node_lo, node_hi, child, start, count, order, leaf, *search = self._bvh()
         g = (self._p0, self._p1, self._c, self._r, self._a0, self._sw, self._prv, self._nxt,
-             node_lo, node_hi, child, start, count, order, *leaf)
+             node_lo, node_hi, child, start, count, order, *leaf, *search)
         return self._origin, g
 
     def _query(self, p: FloatArray) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:

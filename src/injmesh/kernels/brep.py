@@ -14,8 +14,11 @@ A boundary is a set of *pieces*, each a line segment or a circular arc, stored i
 ``prv, nxt (m,)``
     The pieces before and after each one along its loop.
 
-A bounding-volume hierarchy over the pieces' boxes (median splits, at most ``LEAF`` pieces per
-leaf) answers nearest-piece queries in O(log m) for points anywhere in the plane.  The sign of
+A bounding-volume hierarchy over the pieces' boxes (median splits, at most ``QUERY_LEAF``
+pieces per leaf) answers nearest-piece queries in O(log m) for points anywhere in the plane.
+A search starts at the leaf that answered a nearby point and climbs to the root; it reads the
+pieces from tables in leaf order with what each test needs precomputed (:func:`leaf_table`,
+:func:`side_table`) and tests arcs without trigonometry.  The sign of
 the distance comes from the nearest feature alone (the side of a segment or arc, or the wedge at
 a vertex), which is exact wherever the distance is not itself at rounding level; where several
 loops pass through the nearest vertex (two operands touching at a point) the point is inside if
@@ -29,7 +32,8 @@ import math
 import numba as nb
 import numpy as np
 
-LEAF = 4
+LEAF = 4  # build_bvh's default, for box_pairs (overlap queries want small leaves)
+QUERY_LEAF = 8  # for nearest-point searches: a shallower tree, contiguous leaves
 TWO_PI = 2.0 * math.pi
 _STACK = 256
 _TIES = 16
@@ -82,7 +86,7 @@ def piece_foot(k, x, y, p0, p1, c, r, a0, sw):  # type: ignore[no-untyped-def]
     return d0, p0[k, 0], p0[k, 1], 0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def tangent(k, at_end, p0, p1, c, sw):  # type: ignore[no-untyped-def]
     """Direction of travel of piece ``k`` at its start (``at_end`` False) or end."""
     if sw[k] == 0.0:
@@ -96,23 +100,22 @@ def tangent(k, at_end, p0, p1, c, sw):  # type: ignore[no-untyped-def]
     return vy, -vx
 
 
-@nb.njit(cache=True)
-def _inside(k, where, x, y, p0, p1, c, r, sw, prv, nxt):  # type: ignore[no-untyped-def]
-    """Whether ``(x, y)`` is inside, judged from its foot on piece ``k`` (see piece_foot)."""
+@nb.njit(cache=True, inline="always")
+def _inside(lt, st, j, where, x, y):  # type: ignore[no-untyped-def]
+    """Whether ``(x, y)`` is inside, judged from its foot on the piece in leaf slot ``j``
+    (``where`` as piece_foot's), from the leaf table ``lt`` and the side table ``st``."""
     if where == 1:
-        if sw[k] == 0.0:
-            ex, ey = p1[k, 0] - p0[k, 0], p1[k, 1] - p0[k, 1]
-            return ex * (y - p0[k, 1]) - ey * (x - p0[k, 0]) > 0.0
-        rho = math.hypot(x - c[k, 0], y - c[k, 1])
-        return rho < r[k] if sw[k] > 0.0 else rho > r[k]
+        if lt[j, _KIND] == _SEG:
+            ex, ey = lt[j, 5], lt[j, 6]
+            return ex * (y - lt[j, _AY]) - ey * (x - lt[j, _AX]) > 0.0
+        rho = math.hypot(x - lt[j, 5], y - lt[j, 6])
+        return rho < lt[j, 7] if st[j, 0] > 0.0 else rho > lt[j, 7]
     if where == 0:
-        vx, vy = p0[k, 0], p0[k, 1]
-        ux, uy = tangent(prv[k], True, p0, p1, c, sw)
-        wx, wy = tangent(k, False, p0, p1, c, sw)
+        vx, vy = lt[j, _AX], lt[j, _AY]
+        ux, uy, wx, wy = st[j, 1], st[j, 2], st[j, 3], st[j, 4]
     else:
-        vx, vy = p1[k, 0], p1[k, 1]
-        ux, uy = tangent(k, True, p0, p1, c, sw)
-        wx, wy = tangent(nxt[k], False, p0, p1, c, sw)
+        vx, vy = lt[j, _BX], lt[j, _BY]
+        ux, uy, wx, wy = st[j, 5], st[j, 6], st[j, 7], st[j, 8]
     ex, ey = x - vx, y - vy
     cu = ux * ey - uy * ex
     cw = wx * ey - wy * ex
@@ -122,6 +125,25 @@ def _inside(k, where, x, y, p0, p1, c, r, sw, prv, nxt):  # type: ignore[no-unty
     if turn > 0.0 or (turn == 0.0 and ux * wx + uy * wy < 0.0):
         return cu > 0.0 and cw > 0.0
     return cu > 0.0 or cw > 0.0
+
+
+@nb.njit(cache=True)
+def side_table(p0, p1, c, sw, prv, nxt, order):  # type: ignore[no-untyped-def]
+    """What the inside test needs of each piece, one row per leaf slot (piece ``order[j]``):
+    the sweep's sign (0 for a segment) and the directions of travel into and out of its start
+    (the previous piece's at its end, its own at its start) and of its end (its own, the next
+    piece's at its start).  In leaf order, so a search reads the pieces' neighbours from the
+    rows it just searched instead of from anywhere in the boundary."""
+    m = order.shape[0]
+    st = np.empty((m, 9))
+    for j in range(m):
+        k = order[j]
+        st[j, 0] = 0.0 if sw[k] == 0.0 else (1.0 if sw[k] > 0.0 else -1.0)
+        st[j, 1], st[j, 2] = tangent(prv[k], True, p0, p1, c, sw)
+        st[j, 3], st[j, 4] = tangent(k, False, p0, p1, c, sw)
+        st[j, 5], st[j, 6] = tangent(k, True, p0, p1, c, sw)
+        st[j, 7], st[j, 8] = tangent(nxt[k], False, p0, p1, c, sw)
+    return st
 
 
 # --- the hierarchy ---------------------------------------------------------------------------
@@ -152,8 +174,8 @@ def piece_boxes(p0, p1, c, r, a0, sw):  # type: ignore[no-untyped-def]
 
 
 @nb.njit(cache=True)
-def build_bvh(lo, hi):  # type: ignore[no-untyped-def]
-    """A bounding-volume hierarchy over boxes ``lo, hi (m, 2)``.
+def build_bvh(lo, hi, leaf=LEAF):  # type: ignore[no-untyped-def]
+    """A bounding-volume hierarchy over boxes ``lo, hi (m, 2)``, at most ``leaf`` boxes per leaf.
 
     Returns ``node_lo, node_hi (k, 2)``, ``child (k,)`` (index of the first of two consecutive
     children, -1 for a leaf), ``start, count (k,)`` (a leaf's range in ``order``) and ``order``
@@ -197,7 +219,7 @@ def build_bvh(lo, hi):  # type: ignore[no-untyped-def]
         node_hi[node, 0], node_hi[node, 1] = bx1, by1
         start[node] = s
         count[node] = e - s
-        if e - s <= LEAF:
+        if e - s <= leaf:
             continue
         sub = order[s:e].copy()
         key = cx[sub] if mx1 - mx0 >= my1 - my0 else cy[sub]
@@ -215,28 +237,27 @@ def build_bvh(lo, hi):  # type: ignore[no-untyped-def]
     ].copy(), count[:n_nodes].copy(), order
 
 
-@nb.njit(cache=True, inline="always")
-def _box_d2(node_lo, node_hi, node, x, y):  # type: ignore[no-untyped-def]
-    dx = 0.0
-    if x < node_lo[node, 0]:
-        dx = node_lo[node, 0] - x
-    elif x > node_hi[node, 0]:
-        dx = x - node_hi[node, 0]
-    dy = 0.0
-    if y < node_lo[node, 1]:
-        dy = node_lo[node, 1] - y
-    elif y > node_hi[node, 1]:
-        dy = y - node_hi[node, 1]
-    return dx * dx + dy * dy
-
-
 # --- queries ---------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True, inline="always")
+def _spread16(v):  # type: ignore[no-untyped-def]
+    """The 16 low bits of ``v`` moved to the even bit positions."""
+    v &= 0xFFFF
+    v = (v | (v << 8)) & 0x00FF00FF
+    v = (v | (v << 4)) & 0x0F0F0F0F
+    v = (v | (v << 2)) & 0x33333333
+    return (v | (v << 1)) & 0x55555555
 
 
 @nb.njit(cache=True)
 def _morton_order(q):  # type: ignore[no-untyped-def]
     """An order of the points along a Z-curve over their box: neighbours in the order are
-    neighbours in the plane, so consecutive queries reuse the cache and the last answer."""
+    neighbours in the plane, so consecutive queries reuse the cache and the last answer.
+
+    The 32-bit keys are sorted by a stable radix sort (four byte-wide passes): the order a
+    stable comparison sort gives, in linear time (a comparison sort cost as much as the
+    queries it orders)."""
     n = q.shape[0]
     if n == 0:
         return np.arange(0)
@@ -245,82 +266,215 @@ def _morton_order(q):  # type: ignore[no-untyped-def]
     scale = 65535.0 / span if span > 0.0 else 0.0
     key = np.empty(n, dtype=np.int64)
     for i in range(n):
-        ix = int((q[i, 0] - x0) * scale)
-        iy = int((q[i, 1] - y0) * scale)
-        z = 0
-        for bit in range(16):
-            z |= ((ix >> bit) & 1) << (2 * bit)
-            z |= ((iy >> bit) & 1) << (2 * bit + 1)
-        key[i] = z
-    return np.argsort(key, kind="mergesort")
+        key[i] = _spread16(int((q[i, 0] - x0) * scale)) | (_spread16(int((q[i, 1] - y0) * scale)) << 1)
+    idx = np.arange(n)
+    tmp = np.empty(n, dtype=np.int64)
+    hist = np.empty(256, dtype=np.int64)
+    for shift in range(0, 32, 8):
+        hist[:] = 0
+        for i in range(n):
+            hist[(key[idx[i]] >> shift) & 255] += 1
+        total = 0
+        for b in range(256):
+            h = hist[b]
+            hist[b] = total
+            total += h
+        for i in range(n):
+            b = (key[idx[i]] >> shift) & 255
+            tmp[hist[b]] = idx[i]
+            hist[b] += 1
+        idx, tmp = tmp, idx
+    return idx
+
+
+# Columns of the packed leaf table (one row per leaf slot, see leaf_table).
+_KIND, _AX, _AY, _BX, _BY = 0, 1, 2, 3, 4
+_SEG = 0.0  # a segment: columns 5, 6 its direction, 7 its squared length
+_ARC = 1.0  # an arc sweeping at most pi: 5, 6 centre, 7 radius, 8-11 the sweep's end rays
+_WIDE = 2.0  # an arc sweeping more than pi (same columns)
+_ROW = 12
 
 
 @nb.njit(cache=True)
+def leaf_table(p0, p1, c, r, sw):  # type: ignore[no-untyped-def]
+    """The pieces (already in leaf order) packed one row each, with what every nearest-point
+    test needs precomputed, so a leaf's pieces are one contiguous block of memory.
+
+    A row holds the kind (segment, arc sweeping at most pi, arc sweeping more), the start and
+    end point, then for a segment its direction and squared length, for an arc its centre,
+    radius and the two rays from the centre that bound its sweep counter-clockwise (start then
+    end: a clockwise arc sweeps counter-clockwise from its end point to its start point).
+    """
+    m = p0.shape[0]
+    t = np.zeros((m, _ROW))
+    for k in range(m):
+        t[k, _AX], t[k, _AY], t[k, _BX], t[k, _BY] = p0[k, 0], p0[k, 1], p1[k, 0], p1[k, 1]
+        if sw[k] == 0.0:
+            t[k, _KIND] = _SEG
+            ex, ey = p1[k, 0] - p0[k, 0], p1[k, 1] - p0[k, 1]
+            t[k, 5], t[k, 6], t[k, 7] = ex, ey, ex * ex + ey * ey
+            continue
+        t[k, _KIND] = _ARC if abs(sw[k]) <= math.pi else _WIDE
+        t[k, 5], t[k, 6], t[k, 7] = c[k, 0], c[k, 1], r[k]
+        ux, uy = p0[k, 0] - c[k, 0], p0[k, 1] - c[k, 1]
+        vx, vy = p1[k, 0] - c[k, 0], p1[k, 1] - c[k, 1]
+        if abs(sw[k]) >= TWO_PI:  # a full turn: every direction is in the sweep
+            t[k, _KIND] = _WIDE
+            vx, vy = ux, uy
+        if sw[k] < 0.0:
+            ux, uy, vx, vy = vx, vy, ux, uy
+        t[k, 8], t[k, 9], t[k, 10], t[k, 11] = ux, uy, vx, vy
+    return t
+
+
+@nb.njit(cache=True, inline="always")
+def _foot(t, j, x, y):  # type: ignore[no-untyped-def]
+    """piece_foot on row ``j`` of a leaf table, without trigonometry: a direction lies in an
+    arc's sweep by its turns from the sweep's two end rays (both left turns for a sweep up to
+    pi; either one for a wider sweep, so a full turn, whose rays coincide, holds every
+    direction)."""
+    ax, ay = t[j, _AX], t[j, _AY]
+    if t[j, _KIND] == _SEG:
+        ex, ey, l2 = t[j, 5], t[j, 6], t[j, 7]
+        s = (x - ax) * ex + (y - ay) * ey
+        if s <= 0.0 or l2 == 0.0:
+            dx, dy = x - ax, y - ay
+            return dx * dx + dy * dy, ax, ay, 0
+        if s >= l2:
+            bx, by = t[j, _BX], t[j, _BY]
+            dx, dy = x - bx, y - by
+            return dx * dx + dy * dy, bx, by, 2
+        u = s / l2
+        fx, fy = ax + u * ex, ay + u * ey
+        dx, dy = x - fx, y - fy
+        return dx * dx + dy * dy, fx, fy, 1
+    cx, cy, r = t[j, 5], t[j, 6], t[j, 7]
+    vx, vy = x - cx, y - cy
+    left0 = t[j, 8] * vy - t[j, 9] * vx >= 0.0
+    left1 = vx * t[j, 11] - vy * t[j, 10] >= 0.0
+    within = (left0 or left1) if t[j, _KIND] == _WIDE else (left0 and left1)
+    rho = math.sqrt(vx * vx + vy * vy)
+    if within and rho > 0.0:
+        g = rho - r
+        return g * g, cx + r * vx / rho, cy + r * vy / rho, 1
+    dx0, dy0 = x - ax, y - ay
+    bx, by = t[j, _BX], t[j, _BY]
+    dx1, dy1 = x - bx, y - by
+    d0 = dx0 * dx0 + dy0 * dy0
+    d1 = dx1 * dx1 + dy1 * dy1
+    if d1 < d0:
+        return d1, bx, by, 2
+    return d0, ax, ay, 0
+
+
+@nb.njit(cache=True, inline="always")
+def _box_gap(box, node, x, y):  # type: ignore[no-untyped-def]
+    """Squared distance from ``(x, y)`` to row ``node`` of a packed box table (lo x, lo y,
+    hi x, hi y)."""
+    dx = max(box[node, 0] - x, 0.0, x - box[node, 2])
+    dy = max(box[node, 1] - y, 0.0, y - box[node, 3])
+    return dx * dx + dy * dy
+
+
+@nb.njit(cache=True)
+def tree_links(child, start, count, m):  # type: ignore[no-untyped-def]
+    """``up (k, 2)``, every node's parent and the parent's other child (-1 for the root), and
+    ``leaf_of (m,)``, the leaf holding every leaf slot: the links a search needs to start at
+    a leaf (both of a level's links in one row, so climbing waits for one load per level)."""
+    k = child.shape[0]
+    parent = np.full((k, 2), -1, dtype=np.int64)
+    leaf_of = np.zeros(m, dtype=np.int64)
+    for node in range(k):
+        ch = child[node]
+        if ch >= 0:
+            parent[ch, 0], parent[ch, 1] = node, ch + 1
+            parent[ch + 1, 0], parent[ch + 1, 1] = node, ch
+        else:
+            for j in range(start[node], start[node] + count[node]):
+                leaf_of[j] = node
+    return parent, leaf_of
+
+
+@nb.njit(cache=True, inline="always")
 def nearest_point(x, y, hint, g, stack, tie_j, tie_w):  # type: ignore[no-untyped-def]
     """Nearest boundary point of ``(x, y)`` (local coordinates) for compiled callers.
 
-    ``g`` is :meth:`BRep.kernel_data`'s tuple; ``hint`` a leaf slot to try first (the answer
+    ``g`` is :meth:`BRep.kernel_data`'s tuple; ``hint`` a leaf slot to start from (the answer
     for a nearby point, or -1); ``stack`` a float work array of size ``2 * _STACK`` (node and
     box distance), ``tie_j``, ``tie_w`` int work arrays of size ``_TIES``.  Returns the signed
     distance (negative inside), the foot, the piece and the leaf slot (the hint for the next
     point).
+
+    Inlined into its callers: a call would reference-count each of ``g``'s arrays per point,
+    which costs as much as the search on a small boundary.
     """
-    p0, p1, c, r, sw, prv, nxt = g[0], g[1], g[2], g[3], g[5], g[6], g[7]
-    node_lo, node_hi, child, start, count, order = g[8], g[9], g[10], g[11], g[12], g[13]
-    lp0, lp1, lc, lr, la0, lsw = g[14], g[15], g[16], g[17], g[18], g[19]
+    return _nearest_point(x, y, hint, g[10], g[11], g[12], g[13], g[20], g[21], g[22], g[23],
+                          g[24], stack, tie_j, tie_w)
+
+
+@nb.njit(cache=True, inline="always")
+def _nearest_point(x, y, hint, child, start, count, order, lt, box, parent, leaf_of, st, stack,
+                   tie_j, tie_w):  # type: ignore[no-untyped-def]
+    # With a hint the search starts at the hint's leaf and climbs to the root, searching each
+    # ancestor's other child only if its box is nearer than the best piece so far: for a
+    # nearby point, one box test per level instead of a descent from the root that tests
+    # both children at every level and pushes and pops the path.
     best = np.inf
     bj = -1
     fx = fy = 0.0
     nties = 0
-    if hint >= 0:
-        d2, gx, gy, where = piece_foot(hint, x, y, lp0, lp1, lc, lr, la0, lsw)
-        best, bj, fx, fy = d2, hint, gx, gy
-        tie_j[0], tie_w[0] = hint, where
-        nties = 1
-    stack[0] = 0.0
+    up = leaf_of[hint] if hint >= 0 else 0
+    stack[0] = up
     stack[1] = 0.0
     sp = 1
-    while sp > 0:
-        sp -= 1
-        if stack[2 * sp + 1] > best:
-            continue  # best has improved since this node was pushed
-        node = int(stack[2 * sp])
-        ch = child[node]
-        if ch < 0:
-            for j in range(start[node], start[node] + count[node]):
-                if j == hint:
-                    continue
-                d2, gx, gy, where = piece_foot(j, x, y, lp0, lp1, lc, lr, la0, lsw)
-                if d2 < best:
-                    best, bj, fx, fy = d2, j, gx, gy
-                    tie_j[0], tie_w[0] = j, where
-                    nties = 1
-                elif d2 == best and nties < _TIES:
-                    tie_j[nties], tie_w[nties] = j, where
-                    nties += 1
-            continue
-        dl = _box_d2(node_lo, node_hi, ch, x, y)
-        dr = _box_d2(node_lo, node_hi, ch + 1, x, y)
-        # Push the farther child first so the nearer one is searched first.
-        if dl <= dr:
-            if dr <= best:
-                stack[2 * sp], stack[2 * sp + 1] = ch + 1, dr
-                sp += 1
-            if dl <= best:
-                stack[2 * sp], stack[2 * sp + 1] = ch, dl
-                sp += 1
-        else:
-            if dl <= best:
-                stack[2 * sp], stack[2 * sp + 1] = ch, dl
-                sp += 1
-            if dr <= best:
-                stack[2 * sp], stack[2 * sp + 1] = ch + 1, dr
-                sp += 1
+    while True:
+        while sp > 0:
+            sp -= 1
+            if stack[2 * sp + 1] > best:
+                continue  # best has improved since this node was pushed
+            node = int(stack[2 * sp])
+            ch = child[node]
+            if ch < 0:
+                for j in range(start[node], start[node] + count[node]):
+                    d2, gx, gy, where = _foot(lt, j, x, y)
+                    if d2 < best:
+                        best, bj, fx, fy = d2, j, gx, gy
+                        tie_j[0], tie_w[0] = j, where
+                        nties = 1
+                    elif d2 == best and nties < _TIES:
+                        tie_j[nties], tie_w[nties] = j, where
+                        nties += 1
+                continue
+            dl = _box_gap(box, ch, x, y)
+            dr = _box_gap(box, ch + 1, x, y)
+            # Push the farther child first so the nearer one is searched first.
+            if dl <= dr:
+                if dr <= best:
+                    stack[2 * sp], stack[2 * sp + 1] = ch + 1, dr
+                    sp += 1
+                if dl <= best:
+                    stack[2 * sp], stack[2 * sp + 1] = ch, dl
+                    sp += 1
+            else:
+                if dl <= best:
+                    stack[2 * sp], stack[2 * sp + 1] = ch, dl
+                    sp += 1
+                if dr <= best:
+                    stack[2 * sp], stack[2 * sp + 1] = ch + 1, dr
+                    sp += 1
+        if up <= 0:
+            break  # the root's subtree is done
+        other = parent[up, 1]
+        up = parent[up, 0]
+        gap = _box_gap(box, other, x, y)
+        if gap <= best:
+            stack[0], stack[1] = other, gap
+            sp = 1
     # Ties at the nearest distance: the same vertex reached from two pieces, or several loops
     # through one point (operands touching there): inside any wedge is inside.
     inside = False
     for t in range(nties):
-        if _inside(order[tie_j[t]], tie_w[t], x, y, p0, p1, c, r, sw, prv, nxt):
+        if _inside(lt, st, tie_j[t], tie_w[t], x, y):
             inside = True
             break
     d = math.sqrt(best)
@@ -331,23 +485,41 @@ def nearest_point(x, y, hint, g, stack, tie_j, tie_w):  # type: ignore[no-untype
 def nearest(q, g):  # type: ignore[no-untyped-def]
     """Signed distance (negative inside), foot point and piece of each point of ``q (n, 2)``.
 
-    Points are visited along a Z-curve and each search starts from the previous point's
-    nearest piece, which bounds the search from the first step (the hierarchy stores the
+    Points are visited along a Z-curve and each search starts from the leaf of the previous
+    point's nearest piece, which bounds the search from the first step (the tables store the
     pieces in leaf order, so a leaf's pieces are contiguous in memory).
     """
     n = q.shape[0]
-    dist = np.empty(n)
-    foot = np.empty((n, 2))
-    piece = np.empty(n, dtype=np.int64)
+    zorder = _morton_order(q)
+    # Gather the points into Z-order and scatter the answers back in loops of their own: the
+    # query loop then reads and writes memory in sequence, and the random accesses, being
+    # independent of one another, overlap (interleaved with the queries, they cost as much).
+    qz = np.empty((n, 2))
+    for s in range(n):
+        qz[s, 0], qz[s, 1] = q[zorder[s], 0], q[zorder[s], 1]
+    dz = np.empty(n)
+    fz = np.empty((n, 2))
+    kz = np.empty(n, dtype=np.int64)
     stack = np.empty(2 * _STACK)
     tie_j = np.empty(_TIES, dtype=np.int64)
     tie_w = np.empty(_TIES, dtype=np.int64)
+    child, start, count, order, lt, box = g[10], g[11], g[12], g[13], g[20], g[21]
+    parent, leaf_of, st = g[22], g[23], g[24]
     last = -1
-    for i in _morton_order(q):
-        d, fx, fy, k, last = nearest_point(q[i, 0], q[i, 1], last, g, stack, tie_j, tie_w)
-        dist[i] = d
-        foot[i, 0], foot[i, 1] = fx, fy
-        piece[i] = k
+    for s in range(n):
+        d, fx, fy, k, last = _nearest_point(qz[s, 0], qz[s, 1], last, child, start, count, order,
+                                            lt, box, parent, leaf_of, st, stack, tie_j, tie_w)
+        dz[s] = d
+        fz[s, 0], fz[s, 1] = fx, fy
+        kz[s] = k
+    dist = np.empty(n)
+    foot = np.empty((n, 2))
+    piece = np.empty(n, dtype=np.int64)
+    for s in range(n):
+        i = zorder[s]
+        dist[i] = dz[s]
+        foot[i, 0], foot[i, 1] = fz[s, 0], fz[s, 1]
+        piece[i] = kz[s]
     return dist, foot, piece
 
 
