@@ -11,6 +11,14 @@ a given cone about v's normal.
 Candidate pairs come from a uniform grid of cells ``radius`` wide (each vertex looks at its own
 and the eight surrounding cells), so the cost is the number of vertex pairs within ``radius``,
 with nothing stored per pair (a detailed outline has hundreds per vertex).
+
+:func:`corner_cones` is the cap of :func:`injmesh.boundary.corner_size`:
+``min(h(p), min_c (s_c + rate |p - c|))`` over *every* corner c, equal bit for bit to the
+brute-force minimum (so rate-Lipschitz wherever h is), on the structure :func:`cone_index`
+builds once: a k-d tree of the corners whose nodes know their least spacing (a branch and
+bound search prunes a node whose ``least spacing + rate * distance`` cannot beat the value so
+far), and a grid of per-cell lower bounds and seed corners that dismisses at once the points no
+cone can reach and gives the others a near-final first value.
 """
 
 from __future__ import annotations
@@ -154,89 +162,163 @@ def _judge(a, s, v, seg, seg_len, v_n, seg_n, width, back_to_back, cos):  # type
     return 0, fx, fy, dist
 
 
-@nb.njit(cache=True)
-def cell_grid(v, size):  # type: ignore[no-untyped-def]
-    """A uniform grid of cells ``size`` wide over points ``v (n, 2)``:
-    ``x0, y0, nx, ny, order, first`` (the points of cell c are ``order[first[c]:first[c + 1]]``,
-    cell c = row * nx + column)."""
-    _, order, first, nx, ny = _cells(v, size)
-    return v[:, 0].min(), v[:, 1].min(), nx, ny, order, first
+#: Rounding allowance of the cone bounds, relative to the cone values and to the coordinates'
+#: magnitude (thousands of ulps): a bound prunes a corner only when it beats the best cone by
+#: more than this, so no corner the formula's rounding could have made the minimum is ever left
+#: out, and the result is the brute-force minimum bit for bit.
+_ROUNDING = 1e-12
 
 
 @nb.njit(cache=True)
-def corner_cones(p, hp, corners, spacing, rate, k, s_min, grid, size,  # type: ignore[no-untyped-def]
-                 empty_rings):
-    """``min(hp, min_c (spacing[c] + rate |p - c|))`` over the ``k`` corners c nearest to each
-    point of ``p (n, 2)``.
+def cone_index(corners, spacing, rate, leaf, margin, cells):  # type: ignore[no-untyped-def]
+    """The search structure of :func:`corner_cones` over ``corners (n, 2)`` with ``spacing (n,)``.
 
-    The corners are searched on ``grid`` (:func:`cell_grid` of the corners, cells ``size``
-    wide) ring of cells by ring of cells, from the point's cell outwards, until the ring is
-    farther than the k-th nearest corner found so far or than ``(hp - s_min) / rate`` (no
-    farther corner can lower hp: ``s_min`` is the smallest spacing).  ``empty_rings[c]`` is the
-    number of rings around cell c that hold no corner (its chessboard distance in cells to the
-    nearest cell that does): the search starts beyond them.  Distances are
-    ``sqrt(dx * dx + dy * dy)``; of corners at exactly the same distance the one listed first
-    counts first.
+    A k-d tree of the corners (each node splits its run of corners at the middle, across the
+    longer side of its bounding box, down to ``leaf`` corners or fewer; node k's children are
+    2k + 1 and 2k + 2), each node with its bounding box and its least spacing, so that
+    ``least spacing + rate * distance to the box`` bounds its corners' cones from below.  Over
+    it, a grid of about ``cells`` square cells covering the corners' box grown by ``margin``
+    gives each cell a lower bound of every cone over the cell (a point whose h is below it is
+    done at once) and the corner whose cone is the lowest at the cell's centre (the first
+    value of a point's search).
+
+    Returns
+    -------
+    index : tuple
+        What :func:`corner_cones` reads.
     """
-    x0, y0, nx, ny, order, first = grid
-    n = p.shape[0]
-    out = np.empty(n)
-    best_d2 = np.empty(max(k, 1))
-    best_c = np.empty(max(k, 1), dtype=np.int64)
-    big = 2.0 ** 40
-    for i in range(n):
-        x, y = p[i, 0], p[i, 1]
-        out[i] = hp[i]
-        reach = (hp[i] - s_min) / rate
-        if not (math.isfinite(x) and math.isfinite(y)) or k < 1 or not reach > 0.0:
+    n = corners.shape[0]
+    depth = 0
+    while (n >> depth) > leaf:
+        depth += 1
+    nodes = (1 << (depth + 1)) - 1
+    perm = np.arange(n)
+    lo, hi = np.empty(nodes, dtype=np.int64), np.empty(nodes, dtype=np.int64)
+    box = np.empty((nodes, 4))
+    least = np.empty(nodes)
+    lo[0], hi[0] = 0, n
+    for k in range(nodes):
+        if k > 0:
+            up = (k - 1) // 2
+            mid = (lo[up] + hi[up]) // 2
+            lo[k], hi[k] = (lo[up], mid) if k == 2 * up + 1 else (mid, hi[up])
+        x0 = y0 = s0 = np.inf
+        x1 = y1 = -np.inf
+        for t in range(lo[k], hi[k]):
+            j = perm[t]
+            x0, x1 = min(x0, corners[j, 0]), max(x1, corners[j, 0])
+            y0, y1 = min(y0, corners[j, 1]), max(y1, corners[j, 1])
+            s0 = min(s0, spacing[j])
+        box[k, 0], box[k, 1], box[k, 2], box[k, 3] = x0, y0, x1, y1
+        least[k] = s0
+        if 2 * k + 1 < nodes:
+            run = perm[lo[k]:hi[k]]
+            perm[lo[k]:hi[k]] = run[np.argsort(corners[run, 0 if x1 - x0 >= y1 - y0 else 1],
+                                                kind="mergesort")]
+    xs, ys, ss = corners[perm, 0].copy(), corners[perm, 1].copy(), spacing[perm].copy()
+    slack = _ROUNDING * (ss.max() + rate * (abs(box[0, 0]) + abs(box[0, 1]) + abs(box[0, 2])
+                                            + abs(box[0, 3]) + 2.0 * margin))
+    tree = (rate, slack, (1 << depth) - 1, lo, hi, box, least, xs, ys, ss)
+    # The grid of cells, at most `cells` along the longer side (a row of collinear corners).
+    gx0, gy0 = box[0, 0] - margin, box[0, 1] - margin
+    ex, ey = box[0, 2] - box[0, 0] + 2.0 * margin, box[0, 3] - box[0, 1] + 2.0 * margin
+    cells = max(cells, 1.0)
+    size = max(math.sqrt(ex * ey / cells), max(ex, ey) / cells)
+    if not size > 0.0:  # corners at one place and no margin
+        size = 1.0
+    nx, ny = int(ex / size) + 1, int(ey / size) + 1
+    lower = np.empty(nx * ny)
+    seed = np.empty(nx * ny, dtype=np.int64)
+    stack = np.empty(depth + 2, dtype=np.int64)
+    for c in range(nx * ny):
+        ax, ay = gx0 + (c % nx) * size, gy0 + (c // nx) * size
+        low, _ = _least(ax, ay, ax + size, ay + size, np.inf, tree, stack)
+        # Lowered by the rounding allowance: no point of the cell has a cone below it.
+        lower[c] = low - _ROUNDING * low - slack
+        mx, my = ax + 0.5 * size, ay + 0.5 * size
+        _, seed[c] = _least(mx, my, mx, my, np.inf, tree, stack)
+    return tree, (gx0, gy0, size, nx, ny, lower, seed)
+
+
+@nb.njit(cache=True)
+def _least(x0, y0, x1, y1, v, tree, stack):  # type: ignore[no-untyped-def]
+    """``min(v, min_c (spacing[c] + rate * distance from c to the box [x0, x1] x [y0, y1]))``
+    (a point when ``x0 == x1`` and ``y0 == y1``) and the corner (its place in the tree's
+    order) that gave it, -1 for v itself.
+
+    Depth first through the k-d tree, the child nearer the box first; a node is skipped when
+    ``least spacing + rate * distance`` is beyond v by more than the rounding allowance,
+    compared squared (``(rate * distance)**2 > (v' - least)**2``, no square root).
+    """
+    rate, slack, first_leaf, lo, hi, box, least, xs, ys, ss = tree
+    r2 = rate * rate
+    arg = -1
+    stack[0] = 0
+    top = 1
+    while top > 0:
+        top -= 1
+        k = stack[top]
+        dx = max(box[k, 0] - x1, 0.0, x0 - box[k, 2])
+        dy = max(box[k, 1] - y1, 0.0, y0 - box[k, 3])
+        e = v + _ROUNDING * v + slack - least[k]
+        if e < 0.0 or r2 * (dx * dx + dy * dy) > e * e:
             continue
-        r2_reach = reach * reach
-        cx = int(math.floor(min(max((x - x0) / size, -big), big)))
-        cy = int(math.floor(min(max((y - y0) / size, -big), big)))
-        # Rings from the first that meets the grid to the one holding its farthest cell.
-        r0 = max(0, -cx, cx - (nx - 1), -cy, cy - (ny - 1))
-        if r0 == 0:
-            r0 = empty_rings[cy * nx + cx]
-        last = max(abs(cx), abs(cx - (nx - 1)), abs(cy), abs(cy - (ny - 1)))
-        found = 0
-        for ring in range(r0, last + 1):
-            # Every cell of this ring is at least (ring - 1) cell widths from the point.
-            gap = (ring - 1) * size
-            if gap > 0.0 and (gap * gap >= r2_reach or (found == k and gap * gap > best_d2[k - 1])):
-                break
-            for gy in range(max(cy - ring, 0), min(cy + ring, ny - 1) + 1):
-                whole = gy == cy - ring or gy == cy + ring  # top and bottom rows of the ring
-                lo = max(cx - ring, 0) if whole else cx - ring
-                hi = min(cx + ring, nx - 1)
-                for gx in range(lo, hi + 1, 1 if whole else 2 * ring):
-                    if gx < 0:
-                        continue
-                    c = gy * nx + gx
-                    for kk in range(first[c], first[c + 1]):
-                        j = order[kk]
-                        dx = x - corners[j, 0]
-                        dy = y - corners[j, 1]
-                        d2 = dx * dx + dy * dy
-                        if not d2 < r2_reach:
-                            continue
-                        if found == k and not (d2 < best_d2[k - 1] or (d2 == best_d2[k - 1]
-                                                                      and j < best_c[k - 1])):
-                            continue
-                        # Insert (d2, j) by distance, then index; a full list drops its last.
-                        at = found if found < k else k - 1
-                        while at > 0 and (best_d2[at - 1] > d2 or (best_d2[at - 1] == d2
-                                                                   and best_c[at - 1] > j)):
-                            best_d2[at] = best_d2[at - 1]
-                            best_c[at] = best_c[at - 1]
-                            at -= 1
-                        best_d2[at] = d2
-                        best_c[at] = j
-                        if found < k:
-                            found += 1
-        v = hp[i]
-        for t in range(found):
-            cone = spacing[best_c[t]] + rate * math.sqrt(best_d2[t])
+        if k < first_leaf:
+            a, b = 2 * k + 1, 2 * k + 2
+            # The nearer child is pushed last, so searched first (ties: the first child).
+            da = max(box[a, 0] - x1, 0.0, x0 - box[a, 2]) ** 2 + max(box[a, 1] - y1, 0.0, y0 - box[a, 3]) ** 2
+            db = max(box[b, 0] - x1, 0.0, x0 - box[b, 2]) ** 2 + max(box[b, 1] - y1, 0.0, y0 - box[b, 3]) ** 2
+            if da <= db:
+                a, b = b, a
+            stack[top] = a
+            stack[top + 1] = b
+            top += 2
+            continue
+        for t in range(lo[k], hi[k]):
+            dx = max(x0 - xs[t], 0.0, xs[t] - x1)
+            dy = max(y0 - ys[t], 0.0, ys[t] - y1)
+            d2 = dx * dx + dy * dy
+            e = v + _ROUNDING * v + slack - ss[t]
+            if e < 0.0 or r2 * d2 > e * e:
+                continue
+            cone = ss[t] + rate * math.sqrt(d2)
             if cone < v:
                 v = cone
+                arg = t
+    return v, arg
+
+
+@nb.njit(cache=True)
+def corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
+    """``min(hp, min_c (spacing[c] + rate * sqrt(dx * dx + dy * dy)))`` over all corners c, for
+    each point of ``p (n, 2)``: the brute-force minimum bit for bit.
+
+    ``index`` is :func:`cone_index` of the corners.  A point whose h is below its grid cell's
+    lower bound (farther from every corner than a cone could reach: most of a big domain) keeps
+    it at once; any other starts from the cone of its cell's seed corner and searches the k-d
+    tree for lower ones (a few nodes and corners near it).  A point with a NaN or infinite
+    coordinate, or with ``hp <= min(spacing)`` or NaN, keeps hp.
+    """
+    tree, grid = index
+    rate, slack, first_leaf, lo, hi, box, least, xs, ys, ss = tree
+    x0, y0, size, nx, ny, lower, seed = grid
+    s_min = least[0]
+    n = p.shape[0]
+    out = np.empty(n)
+    stack = np.empty(64, dtype=np.int64)
+    for i in range(n):
+        x, y = p[i, 0], p[i, 1]
+        v = hp[i]
         out[i] = v
+        if not (math.isfinite(x) and math.isfinite(y)) or not v > s_min:
+            continue
+        fx, fy = (x - x0) / size, (y - y0) / size
+        if 0.0 <= fx < nx and 0.0 <= fy < ny:
+            c = int(fy) * nx + int(fx)
+            if v <= lower[c]:
+                continue
+            t = seed[c]
+            dx, dy = x - xs[t], y - ys[t]
+            v = min(v, ss[t] + rate * math.sqrt(dx * dx + dy * dy))
+        out[i], _ = _least(x, y, x, y, v, tree, stack)
     return out
