@@ -222,10 +222,12 @@ def test_corner_cones_are_the_minimum_over_every_corner(layout: str) -> None:
         hp[1::89] = 0.0005  # h below every spacing: kept
         for rate in (0.1, 0.5):
             ref = _cones_reference(p, hp, corners, spacing, rate)
-            for leaf, margin, cells in ((8, 0.05, len(corners)), (1, 0.0, 1.0), (3, 2.0, 7.0 * len(corners))):
-                index = cone_index(corners, spacing, rate, leaf, margin, cells)
+            # Cells with leaf lists (h_max above their bound), without (0), lists cut short.
+            for leaf, margin, cells, h_max in ((8, 0.05, len(corners), np.inf), (1, 0.0, 1.0, 0.05),
+                                               (3, 2.0, 7.0 * len(corners), 0.0), (2, 0.3, 30.0, 10.0)):
+                index = cone_index(corners, spacing, rate, leaf, margin, cells, h_max)
                 got = corner_cones(p, hp, index)
-                assert np.array_equal(got, ref, equal_nan=True), (leaf, margin, cells)
+                assert np.array_equal(got, ref, equal_nan=True), (leaf, margin, cells, h_max)
                 assert np.array_equal(corner_cones(p, hp, index), got, equal_nan=True)
             # Points with a non-finite coordinate, or h at or below every spacing, keep h.
             kept = ~np.isfinite(p).all(axis=1) | ~(hp > spacing.min())
@@ -238,15 +240,16 @@ def test_corner_cones_are_the_minimum_over_every_corner(layout: str) -> None:
     st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5), st.floats(1e-4, 2.0)), min_size=1, max_size=30),
     st.floats(0.05, 1.0),
     st.integers(1, 6),
+    st.floats(0.0, 3.0),
 )
-def test_corner_cones_match_brute_force_on_any_corners(corners, points, rate, leaf) -> None:
+def test_corner_cones_match_brute_force_on_any_corners(corners, points, rate, leaf, h_max) -> None:
     from injmesh.kernels.outline import cone_index, corner_cones
 
     c = np.ascontiguousarray(np.array(corners)[:, :2])
     s = np.ascontiguousarray(np.array(corners)[:, 2])
     p = np.ascontiguousarray(np.array(points)[:, :2])
     hp = np.array(points)[:, 2]
-    index = cone_index(c, s, rate, leaf, 0.5, 2.0 * len(c))
+    index = cone_index(c, s, rate, leaf, 0.5, 2.0 * len(c), h_max)
     assert np.array_equal(corner_cones(p, hp, index), _cones_reference(p, hp, c, s, rate))
 
 
@@ -258,8 +261,8 @@ def test_cone_grid_bounds_hold_and_far_points_keep_h() -> None:
     rng = np.random.default_rng(3)
     corners = np.ascontiguousarray(shapes.large(2, n_vertices=600).rings[0], dtype=float)
     spacing = 0.002 + 0.01 * rng.random(len(corners))
-    index = cone_index(corners, spacing, 0.2, 8, 0.2, float(len(corners)))
-    x0, y0, size, nx, ny, lower, _ = index[1]
+    index = cone_index(corners, spacing, 0.2, 8, 0.2, float(len(corners)), np.inf)
+    x0, y0, size, nx, ny, lower = index[1][:6]
     p = rng.uniform((x0, y0), (x0 + nx * size, y0 + ny * size), (20000, 2))
     cell = (np.floor((p[:, 1] - y0) / size) * nx + np.floor((p[:, 0] - x0) / size)).astype(int)
     exact = _cones_reference(p, np.full(len(p), np.inf), corners, spacing, 0.2)

@@ -393,11 +393,12 @@ class _CornerCap:
         # The grid of lower bounds reaches as far beyond the corners as a cone can lower the
         # h found at them (at most the corners' extent); beyond it the tree's root bound
         # dismisses a point as quickly.
-        reach = (float(np.max(h(self.corners))) - float(self.spacing.min())) / rate
+        h_max = float(np.max(h(self.corners)))
+        reach = (h_max - float(self.spacing.min())) / rate
         extent = float(np.ptp(self.corners, axis=0).max())
         margin = min(reach, extent) if extent > 0.0 else reach
         self.index = cone_index(self.corners, self.spacing, float(rate), CONE_LEAF, margin,
-                                CONE_CELLS * len(self.corners))
+                                CONE_CELLS * len(self.corners), h_max)
 
     def __call__(self, p: FloatArray) -> FloatArray:
         from .kernels.outline import corner_cones

@@ -169,23 +169,31 @@ def _judge(a, s, v, seg, seg_len, v_n, seg_n, width, back_to_back, cos):  # type
 _ROUNDING = 1e-12
 
 
+#: Longest list of candidate leaves a grid cell keeps (beyond it, its points search the tree).
+_MAX_LEAVES = 64
+
+
 @nb.njit(cache=True)
-def cone_index(corners, spacing, rate, leaf, margin, cells):  # type: ignore[no-untyped-def]
+def cone_index(corners, spacing, rate, leaf, margin, cells, h_max):  # type: ignore[no-untyped-def]
     """The search structure of :func:`corner_cones` over ``corners (n, 2)`` with ``spacing (n,)``.
 
     A k-d tree of the corners (each node splits its run of corners at the middle, across the
     longer side of its bounding box, down to ``leaf`` corners or fewer; node k's children are
     2k + 1 and 2k + 2), each node with its bounding box and its least spacing, so that
-    ``least spacing + rate * distance to the box`` bounds its corners' cones from below.  Over
-    it, a grid of about ``cells`` square cells covering the corners' box grown by ``margin``
-    gives each cell a lower bound of every cone over the cell (a point whose h is below it is
-    done at once) and the corner whose cone is the lowest at the cell's centre (the first
-    value of a point's search).
+    ``least spacing + rate * distance to the box`` bounds its corners' cones from below.
+
+    Over it, a grid of about ``cells`` square cells covering the corners' box grown by
+    ``margin``.  Each cell C keeps a lower bound of every cone over C (a point whose h is below
+    it keeps h at once), the corner whose cone is the lowest at C's centre (a point's first
+    value) and, when that lower bound is below ``h_max`` (the largest h expected near the
+    corners), the tree's leaves that can hold the minimum somewhere in C: those whose bound over
+    C is at most ``U_C = cone at the centre + rate * half the diagonal`` (the cones' minimum is
+    rate-Lipschitz), sorted by that bound, at most ``_MAX_LEAVES`` of them.
 
     Returns
     -------
     index : tuple
-        What :func:`corner_cones` reads.
+        What :func:`corner_cones` reads: ``(tree, grid)``.
     """
     n = corners.shape[0]
     depth = 0
@@ -218,7 +226,8 @@ def cone_index(corners, spacing, rate, leaf, margin, cells):  # type: ignore[no-
     xs, ys, ss = corners[perm, 0].copy(), corners[perm, 1].copy(), spacing[perm].copy()
     slack = _ROUNDING * (ss.max() + rate * (abs(box[0, 0]) + abs(box[0, 1]) + abs(box[0, 2])
                                             + abs(box[0, 3]) + 2.0 * margin))
-    tree = (rate, slack, (1 << depth) - 1, lo, hi, box, least, xs, ys, ss)
+    first_leaf = (1 << depth) - 1
+    tree = (rate, slack, first_leaf, lo, hi, box, least, xs, ys, ss)
     # The grid of cells, at most `cells` along the longer side (a row of collinear corners).
     gx0, gy0 = box[0, 0] - margin, box[0, 1] - margin
     ex, ey = box[0, 2] - box[0, 0] + 2.0 * margin, box[0, 3] - box[0, 1] + 2.0 * margin
@@ -229,15 +238,67 @@ def cone_index(corners, spacing, rate, leaf, margin, cells):  # type: ignore[no-
     nx, ny = int(ex / size) + 1, int(ey / size) + 1
     lower = np.empty(nx * ny)
     seed = np.empty(nx * ny, dtype=np.int64)
+    start = np.zeros(nx * ny + 1, dtype=np.int64)
+    leaves = np.empty(max(4 * n, 16), dtype=np.int64)
+    bounds = np.empty(max(4 * n, 16))
     stack = np.empty(depth + 2, dtype=np.int64)
+    found = np.empty(_MAX_LEAVES + 1, dtype=np.int64)
+    found_b = np.empty(_MAX_LEAVES + 1)
+    m = 0
     for c in range(nx * ny):
         ax, ay = gx0 + (c % nx) * size, gy0 + (c // nx) * size
         low, _ = _least(ax, ay, ax + size, ay + size, np.inf, tree, stack)
         # Lowered by the rounding allowance: no point of the cell has a cone below it.
         lower[c] = low - _ROUNDING * low - slack
         mx, my = ax + 0.5 * size, ay + 0.5 * size
-        _, seed[c] = _least(mx, my, mx, my, np.inf, tree, stack)
-    return tree, (gx0, gy0, size, nx, ny, lower, seed)
+        centre, seed[c] = _least(mx, my, mx, my, np.inf, tree, stack)
+        if low < h_max:
+            # 0.7072 > sqrt(2) / 2: the farthest point of the cell from its centre.
+            k = _leaves_below(ax, ay, ax + size, ay + size, centre + rate * 0.7072 * size, tree,
+                              stack, found, found_b)
+            if k > 0:
+                by_bound = np.argsort(found_b[:k], kind="mergesort")
+                if m + k > len(leaves):
+                    leaves = np.concatenate((leaves, np.empty(m + k, dtype=np.int64)))
+                    bounds = np.concatenate((bounds, np.empty(m + k)))
+                for t in range(k):
+                    leaves[m + t] = found[by_bound[t]]
+                    b = found_b[by_bound[t]]
+                    bounds[m + t] = b - _ROUNDING * b - slack
+                m += k
+        start[c + 1] = m
+    return tree, (gx0, gy0, size, nx, ny, lower, seed, start, leaves[:m].copy(), bounds[:m].copy())
+
+
+@nb.njit(cache=True)
+def _leaves_below(x0, y0, x1, y1, u, tree, stack, found, found_b):  # type: ignore[no-untyped-def]
+    """The leaves whose bound over the box [x0, x1] x [y0, y1] (``least spacing + rate *
+    distance``) is not beyond u, and their bounds, in ``found``, ``found_b``: how many, or 0
+    when more than ``len(found) - 1``."""
+    rate, slack, first_leaf, lo, hi, box, least, xs, ys, ss = tree
+    r2 = rate * rate
+    m = 0
+    stack[0] = 0
+    top = 1
+    while top > 0:
+        top -= 1
+        k = stack[top]
+        dx = max(box[k, 0] - x1, 0.0, x0 - box[k, 2])
+        dy = max(box[k, 1] - y1, 0.0, y0 - box[k, 3])
+        e = u + _ROUNDING * u + slack - least[k]
+        if e < 0.0 or r2 * (dx * dx + dy * dy) > e * e:
+            continue
+        if k < first_leaf:
+            stack[top] = 2 * k + 2
+            stack[top + 1] = 2 * k + 1
+            top += 2
+            continue
+        if m == len(found) - 1:
+            return 0
+        found[m] = k
+        found_b[m] = least[k] + rate * math.sqrt(dx * dx + dy * dy)
+        m += 1
+    return m
 
 
 @nb.njit(cache=True)
@@ -301,7 +362,8 @@ def corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
     """
     tree, grid = index
     rate, slack, first_leaf, lo, hi, box, least, xs, ys, ss = tree
-    x0, y0, size, nx, ny, lower, seed = grid
+    x0, y0, size, nx, ny, lower, seed, start, leaves, bounds = grid
+    r2 = rate * rate
     s_min = least[0]
     n = p.shape[0]
     out = np.empty(n)
@@ -320,5 +382,24 @@ def corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
             t = seed[c]
             dx, dy = x - xs[t], y - ys[t]
             v = min(v, ss[t] + rate * math.sqrt(dx * dx + dy * dy))
+            if start[c] < start[c + 1]:
+                for q in range(start[c], start[c + 1]):
+                    if bounds[q] >= v:  # and so are the rest: sorted
+                        break
+                    k = leaves[q]
+                    dx = max(box[k, 0] - x, 0.0, x - box[k, 2])
+                    dy = max(box[k, 1] - y, 0.0, y - box[k, 3])
+                    e = v + _ROUNDING * v + slack - least[k]
+                    if e < 0.0 or r2 * (dx * dx + dy * dy) > e * e:
+                        continue
+                    for t in range(lo[k], hi[k]):
+                        dx, dy = x - xs[t], y - ys[t]
+                        d2 = dx * dx + dy * dy
+                        e = v + _ROUNDING * v + slack - ss[t]
+                        if e < 0.0 or r2 * d2 > e * e:
+                            continue
+                        v = min(v, ss[t] + rate * math.sqrt(d2))
+                out[i] = v
+                continue
         out[i], _ = _least(x, y, x, y, v, tree, stack)
     return out
