@@ -262,7 +262,8 @@ def test_cone_grid_bounds_hold_and_far_points_keep_h() -> None:
     corners = np.ascontiguousarray(shapes.large(2, n_vertices=600).rings[0], dtype=float)
     spacing = 0.002 + 0.01 * rng.random(len(corners))
     index = cone_index(corners, spacing, 0.2, 8, 0.2, float(len(corners)), np.inf)
-    x0, y0, size, nx, ny, lower = index[1][:6]
+    x0, y0, size, nx, ny, cell_rows = index[1][:6]
+    lower = cell_rows[:, 0]
     p = rng.uniform((x0, y0), (x0 + nx * size, y0 + ny * size), (20000, 2))
     cell = (np.floor((p[:, 1] - y0) / size) * nx + np.floor((p[:, 0] - x0) / size)).astype(int)
     exact = _cones_reference(p, np.full(len(p), np.inf), corners, spacing, 0.2)

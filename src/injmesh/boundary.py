@@ -324,7 +324,7 @@ VERTEX_TURN = 0.1
 #: :func:`corner_size`'s search structure: corners per leaf of its k-d tree, cells of its grid
 #: of lower bounds per corner.
 CONE_LEAF = 8
-CONE_CELLS = 1.0
+CONE_CELLS = 2.0
 
 
 def _exact_brep(domain: Domain) -> BRep | None:

@@ -188,7 +188,10 @@ def cone_index(corners, spacing, rate, leaf, margin, cells, h_max):  # type: ign
     value) and, when that lower bound is below ``h_max`` (the largest h expected near the
     corners), the tree's leaves that can hold the minimum somewhere in C: those whose bound over
     C is at most ``U_C = cone at the centre + rate * half the diagonal`` (the cones' minimum is
-    rate-Lipschitz), sorted by that bound, at most ``_MAX_LEAVES`` of them.
+    rate-Lipschitz), sorted by that bound, at most ``_MAX_LEAVES`` of them.  What a point reads
+    is packed in rows (a node's box, least spacing and run of corners; a corner's x, y and
+    spacing; a cell's bound and seed corner; a list entry's bound and leaf): a point touches few
+    cache lines.
 
     Returns
     -------
@@ -201,81 +204,88 @@ def cone_index(corners, spacing, rate, leaf, margin, cells, h_max):  # type: ign
         depth += 1
     nodes = (1 << (depth + 1)) - 1
     perm = np.arange(n)
-    lo, hi = np.empty(nodes, dtype=np.int64), np.empty(nodes, dtype=np.int64)
-    box = np.empty((nodes, 4))
-    least = np.empty(nodes)
-    lo[0], hi[0] = 0, n
+    # node rows: x0, y0, x1, y1, least spacing, first corner, end of its corners
+    node = np.empty((nodes, 7))
+    node[0, 5], node[0, 6] = 0.0, float(n)
     for k in range(nodes):
         if k > 0:
             up = (k - 1) // 2
-            mid = (lo[up] + hi[up]) // 2
-            lo[k], hi[k] = (lo[up], mid) if k == 2 * up + 1 else (mid, hi[up])
+            mid = float((int(node[up, 5]) + int(node[up, 6])) // 2)
+            node[k, 5], node[k, 6] = (node[up, 5], mid) if k == 2 * up + 1 else (mid, node[up, 6])
+        lo, hi = int(node[k, 5]), int(node[k, 6])
         x0 = y0 = s0 = np.inf
         x1 = y1 = -np.inf
-        for t in range(lo[k], hi[k]):
+        for t in range(lo, hi):
             j = perm[t]
             x0, x1 = min(x0, corners[j, 0]), max(x1, corners[j, 0])
             y0, y1 = min(y0, corners[j, 1]), max(y1, corners[j, 1])
             s0 = min(s0, spacing[j])
-        box[k, 0], box[k, 1], box[k, 2], box[k, 3] = x0, y0, x1, y1
-        least[k] = s0
+        node[k, 0], node[k, 1], node[k, 2], node[k, 3], node[k, 4] = x0, y0, x1, y1, s0
         if 2 * k + 1 < nodes:
-            run = perm[lo[k]:hi[k]]
-            perm[lo[k]:hi[k]] = run[np.argsort(corners[run, 0 if x1 - x0 >= y1 - y0 else 1],
-                                                kind="mergesort")]
-    xs, ys, ss = corners[perm, 0].copy(), corners[perm, 1].copy(), spacing[perm].copy()
-    slack = _ROUNDING * (ss.max() + rate * (abs(box[0, 0]) + abs(box[0, 1]) + abs(box[0, 2])
-                                            + abs(box[0, 3]) + 2.0 * margin))
+            run = perm[lo:hi]
+            perm[lo:hi] = run[np.argsort(corners[run, 0 if x1 - x0 >= y1 - y0 else 1],
+                                         kind="mergesort")]
+    # corner rows, in the tree's order: x, y, spacing
+    pts = np.empty((n, 3))
+    pts[:, 0], pts[:, 1], pts[:, 2] = corners[perm, 0], corners[perm, 1], spacing[perm]
+    slack = _ROUNDING * (spacing.max() + rate * (abs(node[0, 0]) + abs(node[0, 1])
+                                                 + abs(node[0, 2]) + abs(node[0, 3]) + 2.0 * margin))
     first_leaf = (1 << depth) - 1
-    tree = (rate, slack, first_leaf, lo, hi, box, least, xs, ys, ss)
+    tree = (rate, slack, first_leaf, node, pts)
     # The grid of cells, at most `cells` along the longer side (a row of collinear corners).
-    gx0, gy0 = box[0, 0] - margin, box[0, 1] - margin
-    ex, ey = box[0, 2] - box[0, 0] + 2.0 * margin, box[0, 3] - box[0, 1] + 2.0 * margin
+    gx0, gy0 = node[0, 0] - margin, node[0, 1] - margin
+    ex, ey = node[0, 2] - node[0, 0] + 2.0 * margin, node[0, 3] - node[0, 1] + 2.0 * margin
     cells = max(cells, 1.0)
     size = max(math.sqrt(ex * ey / cells), max(ex, ey) / cells)
     if not size > 0.0:  # corners at one place and no margin
         size = 1.0
     nx, ny = int(ex / size) + 1, int(ey / size) + 1
-    lower = np.empty(nx * ny)
-    seed = np.empty(nx * ny, dtype=np.int64)
+    # cell rows: lower bound, seed corner's x, y and spacing
+    cell = np.empty((nx * ny, 4))
     start = np.zeros(nx * ny + 1, dtype=np.int64)
-    leaves = np.empty(max(4 * n, 16), dtype=np.int64)
-    bounds = np.empty(max(4 * n, 16))
+    entries = np.empty((max(4 * n, 16), 2))  # list rows: bound over the cell, leaf
     stack = np.empty(depth + 2, dtype=np.int64)
-    found = np.empty(_MAX_LEAVES + 1, dtype=np.int64)
-    found_b = np.empty(_MAX_LEAVES + 1)
+    found = np.empty((_MAX_LEAVES + 1, 2))
     m = 0
     for c in range(nx * ny):
         ax, ay = gx0 + (c % nx) * size, gy0 + (c // nx) * size
         low, _ = _least(ax, ay, ax + size, ay + size, np.inf, tree, stack)
         # Lowered by the rounding allowance: no point of the cell has a cone below it.
-        lower[c] = low - _ROUNDING * low - slack
+        cell[c, 0] = low - _ROUNDING * low - slack
         mx, my = ax + 0.5 * size, ay + 0.5 * size
-        centre, seed[c] = _least(mx, my, mx, my, np.inf, tree, stack)
+        centre, t = _least(mx, my, mx, my, np.inf, tree, stack)
+        cell[c, 1], cell[c, 2], cell[c, 3] = pts[t, 0], pts[t, 1], pts[t, 2]
         if low < h_max:
             # 0.7072 > sqrt(2) / 2: the farthest point of the cell from its centre.
             k = _leaves_below(ax, ay, ax + size, ay + size, centre + rate * 0.7072 * size, tree,
-                              stack, found, found_b)
+                              stack, found)
             if k > 0:
-                by_bound = np.argsort(found_b[:k], kind="mergesort")
-                if m + k > len(leaves):
-                    leaves = np.concatenate((leaves, np.empty(m + k, dtype=np.int64)))
-                    bounds = np.concatenate((bounds, np.empty(m + k)))
+                by_bound = np.argsort(found[:k, 0], kind="mergesort")
+                if m + k > len(entries):
+                    entries = np.concatenate((entries, np.empty((m + k, 2))))
                 for t in range(k):
-                    leaves[m + t] = found[by_bound[t]]
-                    b = found_b[by_bound[t]]
-                    bounds[m + t] = b - _ROUNDING * b - slack
+                    b = found[by_bound[t], 0]
+                    entries[m + t, 0] = b - _ROUNDING * b - slack
+                    entries[m + t, 1] = found[by_bound[t], 1]
                 m += k
         start[c + 1] = m
-    return tree, (gx0, gy0, size, nx, ny, lower, seed, start, leaves[:m].copy(), bounds[:m].copy())
+    return tree, (gx0, gy0, size, nx, ny, cell, start, entries[:m].copy())
+
+
+@nb.njit(cache=True, inline="always")
+def _beyond(bound2, v, slack, least):  # type: ignore[no-untyped-def]
+    """``least + rate * distance`` is beyond v by more than the rounding allowance, given
+    ``bound2 = (rate * distance)**2``: compared squared, no square root."""
+    e = v + _ROUNDING * v + slack - least
+    return e < 0.0 or bound2 > e * e
 
 
 @nb.njit(cache=True)
-def _leaves_below(x0, y0, x1, y1, u, tree, stack, found, found_b):  # type: ignore[no-untyped-def]
+def _leaves_below(x0, y0, x1, y1, u, tree, stack, found):  # type: ignore[no-untyped-def]
     """The leaves whose bound over the box [x0, x1] x [y0, y1] (``least spacing + rate *
-    distance``) is not beyond u, and their bounds, in ``found``, ``found_b``: how many, or 0
-    when more than ``len(found) - 1``."""
-    rate, slack, first_leaf, lo, hi, box, least, xs, ys, ss = tree
+    distance``) is not beyond u: their bounds and numbers in the rows of ``found``; how many,
+    or 0 when more than ``len(found) - 1``."""
+    rate, slack, first_leaf, node, pts = tree
     r2 = rate * rate
     m = 0
     stack[0] = 0
@@ -283,10 +293,9 @@ def _leaves_below(x0, y0, x1, y1, u, tree, stack, found, found_b):  # type: igno
     while top > 0:
         top -= 1
         k = stack[top]
-        dx = max(box[k, 0] - x1, 0.0, x0 - box[k, 2])
-        dy = max(box[k, 1] - y1, 0.0, y0 - box[k, 3])
-        e = u + _ROUNDING * u + slack - least[k]
-        if e < 0.0 or r2 * (dx * dx + dy * dy) > e * e:
+        dx = max(node[k, 0] - x1, 0.0, x0 - node[k, 2])
+        dy = max(node[k, 1] - y1, 0.0, y0 - node[k, 3])
+        if _beyond(r2 * (dx * dx + dy * dy), u, slack, node[k, 4]):
             continue
         if k < first_leaf:
             stack[top] = 2 * k + 2
@@ -295,8 +304,8 @@ def _leaves_below(x0, y0, x1, y1, u, tree, stack, found, found_b):  # type: igno
             continue
         if m == len(found) - 1:
             return 0
-        found[m] = k
-        found_b[m] = least[k] + rate * math.sqrt(dx * dx + dy * dy)
+        found[m, 0] = node[k, 4] + rate * math.sqrt(dx * dx + dy * dy)
+        found[m, 1] = k
         m += 1
     return m
 
@@ -304,14 +313,13 @@ def _leaves_below(x0, y0, x1, y1, u, tree, stack, found, found_b):  # type: igno
 @nb.njit(cache=True)
 def _least(x0, y0, x1, y1, v, tree, stack):  # type: ignore[no-untyped-def]
     """``min(v, min_c (spacing[c] + rate * distance from c to the box [x0, x1] x [y0, y1]))``
-    (a point when ``x0 == x1`` and ``y0 == y1``) and the corner (its place in the tree's
+    (a point when ``x0 == x1`` and ``y0 == y1``) and the corner (its row in the tree's
     order) that gave it, -1 for v itself.
 
-    Depth first through the k-d tree, the child nearer the box first; a node is skipped when
-    ``least spacing + rate * distance`` is beyond v by more than the rounding allowance,
-    compared squared (``(rate * distance)**2 > (v' - least)**2``, no square root).
+    Depth first through the k-d tree, the child nearer the box first, skipping a node whose
+    ``least spacing + rate * distance`` is beyond v by more than the rounding allowance.
     """
-    rate, slack, first_leaf, lo, hi, box, least, xs, ys, ss = tree
+    rate, slack, first_leaf, node, pts = tree
     r2 = rate * rate
     arg = -1
     stack[0] = 0
@@ -319,30 +327,30 @@ def _least(x0, y0, x1, y1, v, tree, stack):  # type: ignore[no-untyped-def]
     while top > 0:
         top -= 1
         k = stack[top]
-        dx = max(box[k, 0] - x1, 0.0, x0 - box[k, 2])
-        dy = max(box[k, 1] - y1, 0.0, y0 - box[k, 3])
-        e = v + _ROUNDING * v + slack - least[k]
-        if e < 0.0 or r2 * (dx * dx + dy * dy) > e * e:
+        dx = max(node[k, 0] - x1, 0.0, x0 - node[k, 2])
+        dy = max(node[k, 1] - y1, 0.0, y0 - node[k, 3])
+        if _beyond(r2 * (dx * dx + dy * dy), v, slack, node[k, 4]):
             continue
         if k < first_leaf:
             a, b = 2 * k + 1, 2 * k + 2
             # The nearer child is pushed last, so searched first (ties: the first child).
-            da = max(box[a, 0] - x1, 0.0, x0 - box[a, 2]) ** 2 + max(box[a, 1] - y1, 0.0, y0 - box[a, 3]) ** 2
-            db = max(box[b, 0] - x1, 0.0, x0 - box[b, 2]) ** 2 + max(box[b, 1] - y1, 0.0, y0 - box[b, 3]) ** 2
-            if da <= db:
+            ax = max(node[a, 0] - x1, 0.0, x0 - node[a, 2])
+            ay = max(node[a, 1] - y1, 0.0, y0 - node[a, 3])
+            bx = max(node[b, 0] - x1, 0.0, x0 - node[b, 2])
+            by = max(node[b, 1] - y1, 0.0, y0 - node[b, 3])
+            if ax * ax + ay * ay <= bx * bx + by * by:
                 a, b = b, a
             stack[top] = a
             stack[top + 1] = b
             top += 2
             continue
-        for t in range(lo[k], hi[k]):
-            dx = max(x0 - xs[t], 0.0, xs[t] - x1)
-            dy = max(y0 - ys[t], 0.0, ys[t] - y1)
+        for t in range(int(node[k, 5]), int(node[k, 6])):
+            dx = max(x0 - pts[t, 0], 0.0, pts[t, 0] - x1)
+            dy = max(y0 - pts[t, 1], 0.0, pts[t, 1] - y1)
             d2 = dx * dx + dy * dy
-            e = v + _ROUNDING * v + slack - ss[t]
-            if e < 0.0 or r2 * d2 > e * e:
+            if _beyond(r2 * d2, v, slack, pts[t, 2]):
                 continue
-            cone = ss[t] + rate * math.sqrt(d2)
+            cone = pts[t, 2] + rate * math.sqrt(d2)
             if cone < v:
                 v = cone
                 arg = t
@@ -356,15 +364,17 @@ def corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
 
     ``index`` is :func:`cone_index` of the corners.  A point whose h is below its grid cell's
     lower bound (farther from every corner than a cone could reach: most of a big domain) keeps
-    it at once; any other starts from the cone of its cell's seed corner and searches the k-d
-    tree for lower ones (a few nodes and corners near it).  A point with a NaN or infinite
-    coordinate, or with ``hp <= min(spacing)`` or NaN, keeps hp.
+    it at once.  Any other starts from the cone of its cell's seed corner and walks its cell's
+    leaves in order of their bounds over the cell until one is no lower than the value so far,
+    skipping a leaf whose bound at the point is not lower either (a few leaves and corners); a
+    point outside the grid, or in a cell without a list, searches the whole tree instead.  A
+    point with a NaN or infinite coordinate, or with ``hp <= min(spacing)`` or NaN, keeps hp.
     """
     tree, grid = index
-    rate, slack, first_leaf, lo, hi, box, least, xs, ys, ss = tree
-    x0, y0, size, nx, ny, lower, seed, start, leaves, bounds = grid
+    rate, slack, first_leaf, node, pts = tree
+    x0, y0, size, nx, ny, cell, start, entries = grid
     r2 = rate * rate
-    s_min = least[0]
+    s_min = node[0, 4]
     n = p.shape[0]
     out = np.empty(n)
     stack = np.empty(64, dtype=np.int64)
@@ -377,28 +387,24 @@ def corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
         fx, fy = (x - x0) / size, (y - y0) / size
         if 0.0 <= fx < nx and 0.0 <= fy < ny:
             c = int(fy) * nx + int(fx)
-            if v <= lower[c]:
+            if v <= cell[c, 0]:
                 continue
-            t = seed[c]
-            dx, dy = x - xs[t], y - ys[t]
-            v = min(v, ss[t] + rate * math.sqrt(dx * dx + dy * dy))
+            dx, dy = x - cell[c, 1], y - cell[c, 2]
+            v = min(v, cell[c, 3] + rate * math.sqrt(dx * dx + dy * dy))
             if start[c] < start[c + 1]:
                 for q in range(start[c], start[c + 1]):
-                    if bounds[q] >= v:  # and so are the rest: sorted
+                    if entries[q, 0] >= v:  # and so are the rest: sorted
                         break
-                    k = leaves[q]
-                    dx = max(box[k, 0] - x, 0.0, x - box[k, 2])
-                    dy = max(box[k, 1] - y, 0.0, y - box[k, 3])
-                    e = v + _ROUNDING * v + slack - least[k]
-                    if e < 0.0 or r2 * (dx * dx + dy * dy) > e * e:
+                    k = int(entries[q, 1])
+                    dx = max(node[k, 0] - x, 0.0, x - node[k, 2])
+                    dy = max(node[k, 1] - y, 0.0, y - node[k, 3])
+                    if _beyond(r2 * (dx * dx + dy * dy), v, slack, node[k, 4]):
                         continue
-                    for t in range(lo[k], hi[k]):
-                        dx, dy = x - xs[t], y - ys[t]
+                    for t in range(int(node[k, 5]), int(node[k, 6])):
+                        dx, dy = x - pts[t, 0], y - pts[t, 1]
                         d2 = dx * dx + dy * dy
-                        e = v + _ROUNDING * v + slack - ss[t]
-                        if e < 0.0 or r2 * d2 > e * e:
-                            continue
-                        v = min(v, ss[t] + rate * math.sqrt(d2))
+                        if not _beyond(r2 * d2, v, slack, pts[t, 2]):
+                            v = min(v, pts[t, 2] + rate * math.sqrt(d2))
                 out[i] = v
                 continue
         out[i], _ = _least(x, y, x, y, v, tree, stack)
