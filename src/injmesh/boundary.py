@@ -378,8 +378,9 @@ def corner_spacing(domain: Domain, h: SizeFn) -> tuple[FloatArray, FloatArray]:
 
 class _CornerCap:
     """``min(h(p), min_c (s_c + rate |p - c|))`` over all corners c, the brute-force minimum
-    bit for bit (:func:`injmesh.kernels.outline.corner_cones` on a k-d tree of the corners and
-    a grid of lower bounds over them: a handful of nodes and corners per point)."""
+    bit for bit (:func:`injmesh.kernels.outline.corner_cones`: a k-d tree of the corners, and
+    a grid whose cells know a lower bound of the cones over them and list the tree's leaves that
+    can hold the minimum there; a point reads a few leaves and corners)."""
 
     def __init__(self, h: SizeFn, corners: FloatArray, spacing: FloatArray, rate: float) -> None:
         from .kernels.outline import cone_index
@@ -390,9 +391,10 @@ class _CornerCap:
         # Cones over a uniform size are meaningful anywhere: callers that evaluate h just
         # outside the domain need not project there first (sizing.features.unrestricted).
         self.everywhere = getattr(h, "constant", None) is not None
-        # The grid of lower bounds reaches as far beyond the corners as a cone can lower the
-        # h found at them (at most the corners' extent); beyond it the tree's root bound
-        # dismisses a point as quickly.
+        # The grid reaches as far beyond the corners as a cone can lower the h found at them
+        # (at most the corners' extent), and its cells list leaves where a cone can lower that
+        # h.  A point elsewhere (h larger than at the corners, or outside the grid) searches
+        # the whole tree: as exact, a little slower; the root's bound dismisses a far point.
         h_max = float(np.max(h(self.corners)))
         reach = (h_max - float(self.spacing.min())) / rate
         extent = float(np.ptp(self.corners, axis=0).max())

@@ -18,7 +18,8 @@ its algorithm (no NumPy twin) and is deterministic: same inputs, bit-identical o
   layer by layer, nearest-node and wall tests) and the per-layer front geometry.
 * :mod:`injmesh.kernels.outline` -- loops over boundary polylines: merging close vertices
   (polygon cleaning), walls facing each other within a width (the feature-size probe), and the
-  corner cones of ``boundary.corner_size`` (a k-d tree branch and bound, exact).
+  corner cones of ``boundary.corner_size`` (exact: a k-d tree, and per grid cell the leaves
+  that can hold the minimum).
 * :mod:`injmesh.kernels.raster` -- inside/outside of background grid nodes by scanlines over
   an exact boundary.
 

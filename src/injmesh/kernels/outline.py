@@ -15,10 +15,11 @@ with nothing stored per pair (a detailed outline has hundreds per vertex).
 :func:`corner_cones` is the cap of :func:`injmesh.boundary.corner_size`:
 ``min(h(p), min_c (s_c + rate |p - c|))`` over *every* corner c, equal bit for bit to the
 brute-force minimum (so rate-Lipschitz wherever h is), on the structure :func:`cone_index`
-builds once: a k-d tree of the corners whose nodes know their least spacing (a branch and
-bound search prunes a node whose ``least spacing + rate * distance`` cannot beat the value so
-far), and a grid of per-cell lower bounds and seed corners that dismisses at once the points no
-cone can reach and gives the others a near-final first value.
+builds once: a k-d tree of the corners whose nodes know their least spacing (a node whose
+``least spacing + rate * distance`` cannot beat the value so far is skipped), and a grid whose
+cells keep a lower bound of the cones over them (a point no cone can reach is done at once), a
+seed corner (a near-final first value) and the list of the tree's leaves that can hold the
+minimum somewhere in the cell, so that a point walks a few leaves instead of the tree.
 """
 
 from __future__ import annotations
