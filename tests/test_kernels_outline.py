@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 import pytest
-from scipy import ndimage
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 from injmesh import Circle, Polygon, Rectangle, shapes
@@ -164,55 +165,144 @@ def test_unrestricted_size_equals_the_restricted_one_inside() -> None:
         assert np.array_equal(fast(p[inside]), target(p[inside]))
 
 
-def _cones_reference(p, hp, corners, spacing, rate, k):
-    """The k-d tree query ``corner_size``'s cap made before the kernel."""
-    reach = (hp.max() - spacing.min()) / rate
-    dist, near = cKDTree(corners).query(p, k=k, distance_upper_bound=reach)
-    dist, near = dist.reshape(len(p), k), near.reshape(len(p), k)
-    seen = near < len(corners)
-    s = spacing[np.minimum(near, len(corners) - 1)]
-    return np.minimum(hp, np.where(seen, s + rate * dist, np.inf).min(axis=1))
+def _cones_reference(p, hp, corners, spacing, rate):
+    """``min(hp, min_c (s_c + rate sqrt(dx dx + dy dy)))`` over every corner, by brute force;
+    hp at points with a non-finite coordinate."""
+    out = np.array(hp, dtype=float)
+    finite = np.isfinite(p).all(axis=1)
+    p = np.where(finite[:, None], p, 0.0)
+    for k in range(0, len(corners), 500):
+        dx = p[:, 0, None] - corners[None, k:k + 500, 0]
+        dy = p[:, 1, None] - corners[None, k:k + 500, 1]
+        cone = spacing[None, k:k + 500] + rate * np.sqrt(dx * dx + dy * dy)
+        out = np.minimum(out, cone.min(axis=1))
+    out[~finite] = np.asarray(hp, dtype=float)[~finite]
+    return out
 
 
-@pytest.mark.parametrize("layout", ["random", "outline", "line", "one"])
-def test_corner_cones_match_the_k_nearest_query(layout: str) -> None:
-    from injmesh.kernels.outline import cell_grid, corner_cones
+def _layout(name: str, rng: np.random.Generator) -> np.ndarray:
+    if name == "random":
+        return rng.random((500, 2))
+    if name == "clustered":  # dense clumps far apart: cells and tree boxes of very unequal fill
+        centres = rng.random((5, 2)) * 10.0
+        return np.concatenate([c + 1e-3 * rng.standard_normal((120, 2)) for c in centres])
+    if name == "outline":
+        return shapes.large(1, n_vertices=800).rings[0]
+    if name == "line":  # no extent across: one row of cells, flat boxes
+        return np.stack([rng.random(300), np.full(300, 0.5)], axis=1)
+    if name == "lattice":  # many corners exactly equally far from many points
+        g = np.arange(12) * 0.125 + 3.0
+        return np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
+    return np.array([[0.3, 0.4]])
+
+
+@pytest.mark.parametrize("layout", ["random", "clustered", "outline", "line", "lattice", "one"])
+def test_corner_cones_are_the_minimum_over_every_corner(layout: str) -> None:
+    from injmesh.kernels.outline import cone_index, corner_cones
 
     rng = np.random.default_rng(5)
-    if layout == "random":
-        corners = rng.random((500, 2))
-    elif layout == "outline":
-        corners = shapes.large(1, n_vertices=800).rings[0]
-    elif layout == "line":  # no extent across: a one-row grid
-        corners = np.stack([rng.random(300), np.full(300, 0.5)], axis=1)
+    corners = np.ascontiguousarray(_layout(layout, rng), dtype=float)
+    if layout == "lattice":  # equal spacings too: ties everywhere
+        spacing = np.full(len(corners), 0.01)
     else:
-        corners = np.array([[0.3, 0.4]])
-    corners = np.ascontiguousarray(corners, dtype=float)
-    spacing = 0.001 + 0.02 * rng.random(len(corners))
-    lo, hi = corners.min(axis=0) - 0.3, corners.max(axis=0) + 0.3
-    p = np.concatenate([rng.uniform(lo, hi, (4000, 2)), corners, [[50.0, -40.0]]])
-    for hp in (0.01 + 0.05 * rng.random(len(p)), np.full(len(p), 3.0)):
-        for cell in (0.003, 0.02, 0.2):
-            grid = cell_grid(corners, cell)
-            nx, ny, first = grid[2], grid[3], grid[5]
-            empty = (np.diff(first) == 0).reshape(ny, nx)
-            rings = ndimage.distance_transform_cdt(empty, metric="chessboard").ravel().astype(np.int64)
-            for k in {1, min(6, len(corners))}:
-                for rate in (0.1, 0.5):
-                    got = corner_cones(p, hp, corners, spacing, rate, k, spacing.min(), grid, cell, rings)
-                    assert np.array_equal(got, _cones_reference(p, hp, corners, spacing, rate, k))
-                    assert np.all(got <= hp)
+        spacing = 0.001 + 0.02 * rng.random(len(corners))
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    span = float(np.max(hi - lo)) + 0.1
+    p = np.concatenate([
+        rng.uniform(lo - 0.3 * span, hi + 0.3 * span, (3000, 2)),  # in, around and off the grid
+        rng.uniform(lo, hi, (1000, 2)),
+        corners, corners + 1e-9,  # on the corners (cone = spacing) and just beside them
+        [[50.0, -40.0], [1e6, 1e6], [np.nan, 0.5], [0.5, np.inf], [-np.inf, np.nan]],
+    ])
+    if layout == "lattice":  # cell corners and midpoints between lattice points
+        p = np.concatenate([p, corners + 0.0625, corners[:, ::-1] + [0.0, 0.0625]])
+    for hp in (0.01 + 0.05 * rng.random(len(p)), np.full(len(p), 3.0), np.full(len(p), np.inf)):
+        hp = hp.copy()
+        hp[::97] = np.nan  # NaN h stays NaN
+        hp[1::89] = 0.0005  # h below every spacing: kept
+        for rate in (0.1, 0.5):
+            ref = _cones_reference(p, hp, corners, spacing, rate)
+            # Cells with leaf lists (h_max above their bound), without (0), lists cut short.
+            for leaf, margin, cells, h_max in ((8, 0.05, len(corners), np.inf), (1, 0.0, 1.0, 0.05),
+                                               (3, 2.0, 7.0 * len(corners), 0.0), (2, 0.3, 30.0, 10.0)):
+                index = cone_index(corners, spacing, rate, leaf, margin, cells, h_max)
+                got = corner_cones(p, hp, index)
+                assert np.array_equal(got, ref, equal_nan=True), (leaf, margin, cells, h_max)
+                assert np.array_equal(corner_cones(p, hp, index), got, equal_nan=True)
+            # Points with a non-finite coordinate, or h at or below every spacing, keep h.
+            kept = ~np.isfinite(p).all(axis=1) | ~(hp > spacing.min())
+            assert np.array_equal(got[kept], hp[kept], equal_nan=True)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.tuples(st.floats(-3, 3), st.floats(-3, 3), st.floats(1e-4, 0.5)), min_size=1, max_size=40),
+    st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5), st.floats(1e-4, 2.0)), min_size=1, max_size=30),
+    st.floats(0.05, 1.0),
+    st.integers(1, 6),
+    st.floats(0.0, 3.0),
+)
+def test_corner_cones_match_brute_force_on_any_corners(corners, points, rate, leaf, h_max) -> None:
+    from injmesh.kernels.outline import cone_index, corner_cones
+
+    c = np.ascontiguousarray(np.array(corners)[:, :2])
+    s = np.ascontiguousarray(np.array(corners)[:, 2])
+    p = np.ascontiguousarray(np.array(points)[:, :2])
+    hp = np.array(points)[:, 2]
+    index = cone_index(c, s, rate, leaf, 0.5, 2.0 * len(c), h_max)
+    assert np.array_equal(corner_cones(p, hp, index), _cones_reference(p, hp, c, s, rate))
+
+
+def test_cone_grid_bounds_hold_and_far_points_keep_h() -> None:
+    # The grid's per-cell lower bound is below every cone over its cell (the early out is
+    # exact), and tight: a point far from the corners is dismissed by it, not by a search.
+    from injmesh.kernels.outline import cone_index, corner_cones
+
+    rng = np.random.default_rng(3)
+    corners = np.ascontiguousarray(shapes.large(2, n_vertices=600).rings[0], dtype=float)
+    spacing = 0.002 + 0.01 * rng.random(len(corners))
+    index = cone_index(corners, spacing, 0.2, 8, 0.2, float(len(corners)), np.inf)
+    x0, y0, size, nx, ny, cell_rows = index[1][:6]
+    lower = cell_rows[:, 0]
+    p = rng.uniform((x0, y0), (x0 + nx * size, y0 + ny * size), (20000, 2))
+    cell = (np.floor((p[:, 1] - y0) / size) * nx + np.floor((p[:, 0] - x0) / size)).astype(int)
+    exact = _cones_reference(p, np.full(len(p), np.inf), corners, spacing, 0.2)
+    assert np.all(lower[cell] <= exact)
+    # Lower bounds within a cell's diagonal of the cones (the grid is worth its cells).
+    assert np.all(exact - lower[cell] <= 0.2 * math.sqrt(2.0) * size * (1 + 1e-9) + 1e-12)
+    hp = np.minimum(exact, lower[cell]) + 0.0  # h at the bound: every point kept, unchanged
+    assert np.array_equal(corner_cones(p, hp, index), hp)
+
+
+def test_corner_cap_is_rate_lipschitz() -> None:
+    # The minimum over every corner moves at most rate |dp| along a path: no jump where the
+    # set of nearest corners changes (what a k-nearest truncation did).
+    from injmesh.boundary import _CornerCap
+    from injmesh.sizing import as_size_function
+
+    rng = np.random.default_rng(4)
+    corners = rng.random((400, 2))
+    spacing = 0.001 + 0.05 * rng.random(400)
+    cap = _CornerCap(as_size_function(1.0), corners, spacing, 0.2)
+    t = np.linspace(0.0, 1.0, 20001)
+    path = np.stack([t, 0.5 + 0.4 * np.sin(7.0 * t)], axis=1)
+    out = cap(path)
+    step = np.hypot(*np.diff(path, axis=0).T)
+    assert np.all(np.abs(np.diff(out)) <= 0.2 * step * (1 + 1e-9) + 1e-15)
+    assert np.array_equal(out, _cones_reference(path, np.ones(len(path)), corners, spacing, 0.2))
 
 
 def test_corner_size_on_a_small_cluster_of_corners_is_fast_far_away() -> None:
-    # Two corners close together in a big domain with a large h: every point's search stops
-    # at the ring farther than its k-th corner (this once scanned 4,000 rows per point).
+    # Two corners close together in a big domain with a large h: the grid of lower bounds
+    # covers only the cluster, so almost every point is dismissed by the tree's root bound
+    # (this once scanned 4,000 rows of cells per point).
     from injmesh.boundary import _CornerCap
     from injmesh.sizing import as_size_function
 
     cap = _CornerCap(as_size_function(lambda p: 0.2 + np.hypot(*p.T)), np.array([[1.0, 0.0], [1.0, 0.08]]),
                      np.array([0.08, 0.08]), 0.2)
+    x0, y0, size, nx, ny = cap.index[1][:5]
+    assert nx * ny <= 8 and nx * size < 1.0 and ny * size < 1.0
     p = np.random.default_rng(0).uniform(-2, 2, (20000, 2))
     out = cap(p)
-    ref = _cones_reference(p, 0.2 + np.hypot(*p.T), cap.corners, cap.spacing, 0.2, 2)
-    assert np.array_equal(out, ref)
+    assert np.array_equal(out, _cones_reference(p, 0.2 + np.hypot(*p.T), cap.corners, cap.spacing, 0.2))

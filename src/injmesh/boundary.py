@@ -26,7 +26,6 @@ geometry lists them in.
 
 from __future__ import annotations
 
-import math
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -322,8 +321,10 @@ def _resolved_vertices(domain: Domain, h: SizeFn) -> FloatArray:
 VERTEX_ARM = 0.5
 VERTEX_TURN = 0.1
 
-#: Nearest corners whose cones :func:`corner_size` takes the minimum of, per point.
-CORNER_CONES = 6
+#: :func:`corner_size`'s search structure: corners per leaf of its k-d tree, cells of its grid
+#: of lower bounds per corner.
+CONE_LEAF = 8
+CONE_CELLS = 2.0
 
 
 def _exact_brep(domain: Domain) -> BRep | None:
@@ -376,34 +377,30 @@ def corner_spacing(domain: Domain, h: SizeFn) -> tuple[FloatArray, FloatArray]:
 
 
 class _CornerCap:
-    """``min(h(p), min_c (s_c + rate |p - c|))`` over the ``CORNER_CONES`` nearest corners c
-    (:func:`injmesh.kernels.outline.corner_cones`; of corners equally far, the first listed)."""
+    """``min(h(p), min_c (s_c + rate |p - c|))`` over all corners c, the brute-force minimum
+    bit for bit (:func:`injmesh.kernels.outline.corner_cones`: a k-d tree of the corners, and
+    a grid whose cells know a lower bound of the cones over them and list the tree's leaves that
+    can hold the minimum there; a point reads a few leaves and corners)."""
 
     def __init__(self, h: SizeFn, corners: FloatArray, spacing: FloatArray, rate: float) -> None:
-        from .kernels.outline import cell_grid
+        from .kernels.outline import cone_index
 
         self.h, self.rate = h, rate
         self.corners = np.ascontiguousarray(corners, dtype=np.float64)
         self.spacing = np.ascontiguousarray(spacing, dtype=np.float64)
-        self.s_min = float(spacing.min())
         # Cones over a uniform size are meaningful anywhere: callers that evaluate h just
         # outside the domain need not project there first (sizing.features.unrestricted).
         self.everywhere = getattr(h, "constant", None) is not None
-        # Square cells half the corners' mean spacing over their box (the fastest on a
-        # 20,000-corner outline), at most about 4 sqrt(n) across in either direction.
-        n = len(self.corners)
-        extent = np.ptp(self.corners, axis=0)
-        mean = math.sqrt(float(extent[0]) * float(extent[1]) / n)
-        self.cell = max(0.5 * mean, float(extent.max()) / (4.0 * math.sqrt(n) + 1.0), 1e-300)
-        self.grid = cell_grid(self.corners, self.cell)
-        # Rings of empty cells around each cell, skipped by the search: far from every corner
-        # (the middle of the domain) a point is done at once.
-        from scipy import ndimage
-
-        nx, ny, first = self.grid[2], self.grid[3], self.grid[5]
-        empty = (np.diff(first) == 0).reshape(ny, nx)
-        self.empty_rings = np.ascontiguousarray(
-            ndimage.distance_transform_cdt(empty, metric="chessboard").ravel(), dtype=np.int64)
+        # The grid reaches as far beyond the corners as a cone can lower the h found at them
+        # (at most the corners' extent), and its cells list leaves where a cone can lower that
+        # h.  A point elsewhere (h larger than at the corners, or outside the grid) searches
+        # the whole tree: as exact, a little slower; the root's bound dismisses a far point.
+        h_max = float(np.max(h(self.corners)))
+        reach = (h_max - float(self.spacing.min())) / rate
+        extent = float(np.ptp(self.corners, axis=0).max())
+        margin = min(reach, extent) if extent > 0.0 else reach
+        self.index = cone_index(self.corners, self.spacing, float(rate), CONE_LEAF, margin,
+                                CONE_CELLS * len(self.corners), h_max)
 
     def __call__(self, p: FloatArray) -> FloatArray:
         from .kernels.outline import corner_cones
@@ -413,8 +410,7 @@ class _CornerCap:
             return hp
         out: FloatArray = corner_cones(
             np.ascontiguousarray(p, dtype=np.float64), np.ascontiguousarray(hp, dtype=np.float64),
-            self.corners, self.spacing, float(self.rate), min(CORNER_CONES, len(self.corners)),
-            self.s_min, self.grid, self.cell, self.empty_rings)
+            self.index)
         return out
 
 
@@ -424,9 +420,12 @@ def corner_size(domain: Domain, h: SizeFunction, rate: float = 0.2) -> SizeFunct
     Every corner of a polygon is a node (Step 1 fixes it), so where corners are closer than h
     (a digitised coastline, a detailed outline) the boundary segments are as short as the
     corners' spacing whatever h says.  Interior nodes at h next to them would make fans of
-    slivers; the size instead becomes ``min(h, s_c + rate |p - c|)`` over the corners c, with
-    s_c the distance to c's nearest fixed neighbour along the boundary (:func:`corner_spacing`),
-    a cone that Eq. 3.1-3.3 and the injection then follow.
+    slivers; the size instead becomes ``min(h, min_c (s_c + rate |p - c|))`` over every corner
+    c, with s_c the distance to c's nearest fixed neighbour along the boundary
+    (:func:`corner_spacing`), a cone that Eq. 3.1-3.3 and the injection then follow.  The
+    minimum over every corner (exact, not over a few nearest ones) is rate-Lipschitz wherever h
+    is, which is what gradation needs; a point costs a handful of corners
+    (:func:`injmesh.kernels.outline.corner_cones`).
 
     Returns
     -------

@@ -17,7 +17,9 @@ its algorithm (no NumPy twin) and is deterministic: same inputs, bit-identical o
 * :mod:`injmesh.kernels.inject` -- Advancing Node Injection: the proximity grid (nodes inserted
   layer by layer, nearest-node and wall tests) and the per-layer front geometry.
 * :mod:`injmesh.kernels.outline` -- loops over boundary polylines: merging close vertices
-  (polygon cleaning), walls facing each other within a width (the feature-size probe).
+  (polygon cleaning), walls facing each other within a width (the feature-size probe), and the
+  corner cones of ``boundary.corner_size`` (exact: a k-d tree, and per grid cell the leaves
+  that can hold the minimum).
 * :mod:`injmesh.kernels.raster` -- inside/outside of background grid nodes by scanlines over
   an exact boundary.
 

@@ -11,6 +11,15 @@ a given cone about v's normal.
 Candidate pairs come from a uniform grid of cells ``radius`` wide (each vertex looks at its own
 and the eight surrounding cells), so the cost is the number of vertex pairs within ``radius``,
 with nothing stored per pair (a detailed outline has hundreds per vertex).
+
+:func:`corner_cones` is the cap of :func:`injmesh.boundary.corner_size`:
+``min(h(p), min_c (s_c + rate |p - c|))`` over *every* corner c, equal bit for bit to the
+brute-force minimum (so rate-Lipschitz wherever h is), on the structure :func:`cone_index`
+builds once: a k-d tree of the corners whose nodes know their least spacing (a node whose
+``least spacing + rate * distance`` cannot beat the value so far is skipped), and a grid whose
+cells keep a lower bound of the cones over them (a point no cone can reach is done at once), a
+seed corner (a near-final first value) and the list of the tree's leaves that can hold the
+minimum somewhere in the cell, so that a point walks a few leaves instead of the tree.
 """
 
 from __future__ import annotations
@@ -154,89 +163,250 @@ def _judge(a, s, v, seg, seg_len, v_n, seg_n, width, back_to_back, cos):  # type
     return 0, fx, fy, dist
 
 
-@nb.njit(cache=True)
-def cell_grid(v, size):  # type: ignore[no-untyped-def]
-    """A uniform grid of cells ``size`` wide over points ``v (n, 2)``:
-    ``x0, y0, nx, ny, order, first`` (the points of cell c are ``order[first[c]:first[c + 1]]``,
-    cell c = row * nx + column)."""
-    _, order, first, nx, ny = _cells(v, size)
-    return v[:, 0].min(), v[:, 1].min(), nx, ny, order, first
+#: Rounding allowance of the cone bounds, relative to the cone values and to the coordinates'
+#: magnitude (thousands of ulps): a bound prunes a corner only when it beats the best cone by
+#: more than this, so no corner the formula's rounding could have made the minimum is ever left
+#: out, and the result is the brute-force minimum bit for bit.
+_ROUNDING = 1e-12
+
+
+#: Longest list of candidate leaves a grid cell keeps (beyond it, its points search the tree).
+_MAX_LEAVES = 64
 
 
 @nb.njit(cache=True)
-def corner_cones(p, hp, corners, spacing, rate, k, s_min, grid, size,  # type: ignore[no-untyped-def]
-                 empty_rings):
-    """``min(hp, min_c (spacing[c] + rate |p - c|))`` over the ``k`` corners c nearest to each
-    point of ``p (n, 2)``.
+def cone_index(corners, spacing, rate, leaf, margin, cells, h_max):  # type: ignore[no-untyped-def]
+    """The search structure of :func:`corner_cones` over ``corners (n, 2)`` with ``spacing (n,)``.
 
-    The corners are searched on ``grid`` (:func:`cell_grid` of the corners, cells ``size``
-    wide) ring of cells by ring of cells, from the point's cell outwards, until the ring is
-    farther than the k-th nearest corner found so far or than ``(hp - s_min) / rate`` (no
-    farther corner can lower hp: ``s_min`` is the smallest spacing).  ``empty_rings[c]`` is the
-    number of rings around cell c that hold no corner (its chessboard distance in cells to the
-    nearest cell that does): the search starts beyond them.  Distances are
-    ``sqrt(dx * dx + dy * dy)``; of corners at exactly the same distance the one listed first
-    counts first.
+    A k-d tree of the corners (each node splits its run of corners at the middle, across the
+    longer side of its bounding box, down to ``leaf`` corners or fewer; node k's children are
+    2k + 1 and 2k + 2), each node with its bounding box and its least spacing, so that
+    ``least spacing + rate * distance to the box`` bounds its corners' cones from below.
+
+    Over it, a grid of about ``cells`` square cells covering the corners' box grown by
+    ``margin``.  Each cell C keeps a lower bound of every cone over C (a point whose h is below
+    it keeps h at once), the corner whose cone is the lowest at C's centre (a point's first
+    value) and, when that lower bound is below ``h_max`` (the largest h expected near the
+    corners), the tree's leaves that can hold the minimum somewhere in C: those whose bound over
+    C is at most ``U_C = cone at the centre + rate * half the diagonal`` (the cones' minimum is
+    rate-Lipschitz), sorted by that bound, at most ``_MAX_LEAVES`` of them.  What a point reads
+    is packed in rows (a node's box, least spacing and run of corners; a corner's x, y and
+    spacing; a cell's bound and seed corner; a list entry's bound and leaf): a point touches few
+    cache lines.
+
+    Returns
+    -------
+    index : tuple
+        What :func:`corner_cones` reads: ``(tree, grid)``.
     """
-    x0, y0, nx, ny, order, first = grid
-    n = p.shape[0]
-    out = np.empty(n)
-    best_d2 = np.empty(max(k, 1))
-    best_c = np.empty(max(k, 1), dtype=np.int64)
-    big = 2.0 ** 40
-    for i in range(n):
-        x, y = p[i, 0], p[i, 1]
-        out[i] = hp[i]
-        reach = (hp[i] - s_min) / rate
-        if not (math.isfinite(x) and math.isfinite(y)) or k < 1 or not reach > 0.0:
+    n = corners.shape[0]
+    depth = 0
+    while (n >> depth) > leaf:
+        depth += 1
+    nodes = (1 << (depth + 1)) - 1
+    perm = np.arange(n)
+    # node rows: x0, y0, x1, y1, least spacing, first corner, end of its corners
+    node = np.empty((nodes, 7))
+    node[0, 5], node[0, 6] = 0.0, float(n)
+    for k in range(nodes):
+        if k > 0:
+            up = (k - 1) // 2
+            mid = float((int(node[up, 5]) + int(node[up, 6])) // 2)
+            node[k, 5], node[k, 6] = (node[up, 5], mid) if k == 2 * up + 1 else (mid, node[up, 6])
+        lo, hi = int(node[k, 5]), int(node[k, 6])
+        x0 = y0 = s0 = np.inf
+        x1 = y1 = -np.inf
+        for t in range(lo, hi):
+            j = perm[t]
+            x0, x1 = min(x0, corners[j, 0]), max(x1, corners[j, 0])
+            y0, y1 = min(y0, corners[j, 1]), max(y1, corners[j, 1])
+            s0 = min(s0, spacing[j])
+        node[k, 0], node[k, 1], node[k, 2], node[k, 3], node[k, 4] = x0, y0, x1, y1, s0
+        if 2 * k + 1 < nodes:
+            run = perm[lo:hi]
+            perm[lo:hi] = run[np.argsort(corners[run, 0 if x1 - x0 >= y1 - y0 else 1],
+                                         kind="mergesort")]
+    # corner rows, in the tree's order: x, y, spacing
+    pts = np.empty((n, 3))
+    pts[:, 0], pts[:, 1], pts[:, 2] = corners[perm, 0], corners[perm, 1], spacing[perm]
+    slack = _ROUNDING * (spacing.max() + rate * (abs(node[0, 0]) + abs(node[0, 1])
+                                                 + abs(node[0, 2]) + abs(node[0, 3]) + 2.0 * margin))
+    first_leaf = (1 << depth) - 1
+    tree = (rate, slack, first_leaf, node, pts)
+    # The grid of cells, at most `cells` along the longer side (a row of collinear corners).
+    gx0, gy0 = node[0, 0] - margin, node[0, 1] - margin
+    ex, ey = node[0, 2] - node[0, 0] + 2.0 * margin, node[0, 3] - node[0, 1] + 2.0 * margin
+    cells = max(cells, 1.0)
+    size = max(math.sqrt(ex * ey / cells), max(ex, ey) / cells)
+    if not size > 0.0:  # corners at one place and no margin
+        size = 1.0
+    nx, ny = int(ex / size) + 1, int(ey / size) + 1
+    # cell rows: lower bound, seed corner's x, y and spacing
+    cell = np.empty((nx * ny, 4))
+    start = np.zeros(nx * ny + 1, dtype=np.int64)
+    entries = np.empty((max(4 * n, 16), 2))  # list rows: bound over the cell, leaf
+    stack = np.empty(depth + 2, dtype=np.int64)
+    found = np.empty((_MAX_LEAVES + 1, 2))
+    m = 0
+    for c in range(nx * ny):
+        ax, ay = gx0 + (c % nx) * size, gy0 + (c // nx) * size
+        low, _ = _least(ax, ay, ax + size, ay + size, np.inf, tree, stack)
+        # Lowered by the rounding allowance: no point of the cell has a cone below it.
+        cell[c, 0] = low - _ROUNDING * low - slack
+        mx, my = ax + 0.5 * size, ay + 0.5 * size
+        centre, t = _least(mx, my, mx, my, np.inf, tree, stack)
+        cell[c, 1], cell[c, 2], cell[c, 3] = pts[t, 0], pts[t, 1], pts[t, 2]
+        if low < h_max:
+            # 0.7072 > sqrt(2) / 2: the farthest point of the cell from its centre.
+            k = _leaves_below(ax, ay, ax + size, ay + size, centre + rate * 0.7072 * size, tree,
+                              stack, found)
+            if k > 0:
+                by_bound = np.argsort(found[:k, 0], kind="mergesort")
+                if m + k > len(entries):
+                    entries = np.concatenate((entries, np.empty((m + k, 2))))
+                for t in range(k):
+                    b = found[by_bound[t], 0]
+                    entries[m + t, 0] = b - _ROUNDING * b - slack
+                    entries[m + t, 1] = found[by_bound[t], 1]
+                m += k
+        start[c + 1] = m
+    return tree, (gx0, gy0, size, nx, ny, cell, start, entries[:m].copy())
+
+
+@nb.njit(cache=True, inline="always")
+def _beyond(bound2, v, slack, least):  # type: ignore[no-untyped-def]
+    """``least + rate * distance`` is beyond v by more than the rounding allowance, given
+    ``bound2 = (rate * distance)**2``: compared squared, no square root."""
+    e = v + _ROUNDING * v + slack - least
+    return e < 0.0 or bound2 > e * e
+
+
+@nb.njit(cache=True)
+def _leaves_below(x0, y0, x1, y1, u, tree, stack, found):  # type: ignore[no-untyped-def]
+    """The leaves whose bound over the box [x0, x1] x [y0, y1] (``least spacing + rate *
+    distance``) is not beyond u: their bounds and numbers in the rows of ``found``; how many,
+    or 0 when more than ``len(found) - 1``."""
+    rate, slack, first_leaf, node, pts = tree
+    r2 = rate * rate
+    m = 0
+    stack[0] = 0
+    top = 1
+    while top > 0:
+        top -= 1
+        k = stack[top]
+        dx = max(node[k, 0] - x1, 0.0, x0 - node[k, 2])
+        dy = max(node[k, 1] - y1, 0.0, y0 - node[k, 3])
+        if _beyond(r2 * (dx * dx + dy * dy), u, slack, node[k, 4]):
             continue
-        r2_reach = reach * reach
-        cx = int(math.floor(min(max((x - x0) / size, -big), big)))
-        cy = int(math.floor(min(max((y - y0) / size, -big), big)))
-        # Rings from the first that meets the grid to the one holding its farthest cell.
-        r0 = max(0, -cx, cx - (nx - 1), -cy, cy - (ny - 1))
-        if r0 == 0:
-            r0 = empty_rings[cy * nx + cx]
-        last = max(abs(cx), abs(cx - (nx - 1)), abs(cy), abs(cy - (ny - 1)))
-        found = 0
-        for ring in range(r0, last + 1):
-            # Every cell of this ring is at least (ring - 1) cell widths from the point.
-            gap = (ring - 1) * size
-            if gap > 0.0 and (gap * gap >= r2_reach or (found == k and gap * gap > best_d2[k - 1])):
-                break
-            for gy in range(max(cy - ring, 0), min(cy + ring, ny - 1) + 1):
-                whole = gy == cy - ring or gy == cy + ring  # top and bottom rows of the ring
-                lo = max(cx - ring, 0) if whole else cx - ring
-                hi = min(cx + ring, nx - 1)
-                for gx in range(lo, hi + 1, 1 if whole else 2 * ring):
-                    if gx < 0:
-                        continue
-                    c = gy * nx + gx
-                    for kk in range(first[c], first[c + 1]):
-                        j = order[kk]
-                        dx = x - corners[j, 0]
-                        dy = y - corners[j, 1]
-                        d2 = dx * dx + dy * dy
-                        if not d2 < r2_reach:
-                            continue
-                        if found == k and not (d2 < best_d2[k - 1] or (d2 == best_d2[k - 1]
-                                                                      and j < best_c[k - 1])):
-                            continue
-                        # Insert (d2, j) by distance, then index; a full list drops its last.
-                        at = found if found < k else k - 1
-                        while at > 0 and (best_d2[at - 1] > d2 or (best_d2[at - 1] == d2
-                                                                   and best_c[at - 1] > j)):
-                            best_d2[at] = best_d2[at - 1]
-                            best_c[at] = best_c[at - 1]
-                            at -= 1
-                        best_d2[at] = d2
-                        best_c[at] = j
-                        if found < k:
-                            found += 1
-        v = hp[i]
-        for t in range(found):
-            cone = spacing[best_c[t]] + rate * math.sqrt(best_d2[t])
+        if k < first_leaf:
+            stack[top] = 2 * k + 2
+            stack[top + 1] = 2 * k + 1
+            top += 2
+            continue
+        if m == len(found) - 1:
+            return 0
+        found[m, 0] = node[k, 4] + rate * math.sqrt(dx * dx + dy * dy)
+        found[m, 1] = k
+        m += 1
+    return m
+
+
+@nb.njit(cache=True)
+def _least(x0, y0, x1, y1, v, tree, stack):  # type: ignore[no-untyped-def]
+    """``min(v, min_c (spacing[c] + rate * distance from c to the box [x0, x1] x [y0, y1]))``
+    (a point when ``x0 == x1`` and ``y0 == y1``) and the corner (its row in the tree's
+    order) that gave it, -1 for v itself.
+
+    Depth first through the k-d tree, the child nearer the box first, skipping a node whose
+    ``least spacing + rate * distance`` is beyond v by more than the rounding allowance.
+    """
+    rate, slack, first_leaf, node, pts = tree
+    r2 = rate * rate
+    arg = -1
+    stack[0] = 0
+    top = 1
+    while top > 0:
+        top -= 1
+        k = stack[top]
+        dx = max(node[k, 0] - x1, 0.0, x0 - node[k, 2])
+        dy = max(node[k, 1] - y1, 0.0, y0 - node[k, 3])
+        if _beyond(r2 * (dx * dx + dy * dy), v, slack, node[k, 4]):
+            continue
+        if k < first_leaf:
+            a, b = 2 * k + 1, 2 * k + 2
+            # The nearer child is pushed last, so searched first (ties: the first child).
+            ax = max(node[a, 0] - x1, 0.0, x0 - node[a, 2])
+            ay = max(node[a, 1] - y1, 0.0, y0 - node[a, 3])
+            bx = max(node[b, 0] - x1, 0.0, x0 - node[b, 2])
+            by = max(node[b, 1] - y1, 0.0, y0 - node[b, 3])
+            if ax * ax + ay * ay <= bx * bx + by * by:
+                a, b = b, a
+            stack[top] = a
+            stack[top + 1] = b
+            top += 2
+            continue
+        for t in range(int(node[k, 5]), int(node[k, 6])):
+            dx = max(x0 - pts[t, 0], 0.0, pts[t, 0] - x1)
+            dy = max(y0 - pts[t, 1], 0.0, pts[t, 1] - y1)
+            d2 = dx * dx + dy * dy
+            if _beyond(r2 * d2, v, slack, pts[t, 2]):
+                continue
+            cone = pts[t, 2] + rate * math.sqrt(d2)
             if cone < v:
                 v = cone
+                arg = t
+    return v, arg
+
+
+@nb.njit(cache=True)
+def corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
+    """``min(hp, min_c (spacing[c] + rate * sqrt(dx * dx + dy * dy)))`` over all corners c, for
+    each point of ``p (n, 2)``: the brute-force minimum bit for bit.
+
+    ``index`` is :func:`cone_index` of the corners.  A point whose h is below its grid cell's
+    lower bound (farther from every corner than a cone could reach: most of a big domain) keeps
+    it at once.  Any other starts from the cone of its cell's seed corner and walks its cell's
+    leaves in order of their bounds over the cell until one is no lower than the value so far,
+    skipping a leaf whose bound at the point is not lower either (a few leaves and corners); a
+    point outside the grid, or in a cell without a list, searches the whole tree instead.  A
+    point with a NaN or infinite coordinate, or with ``hp <= min(spacing)`` or NaN, keeps hp.
+    """
+    tree, grid = index
+    rate, slack, first_leaf, node, pts = tree
+    x0, y0, size, nx, ny, cell, start, entries = grid
+    r2 = rate * rate
+    s_min = node[0, 4]
+    n = p.shape[0]
+    out = np.empty(n)
+    stack = np.empty(64, dtype=np.int64)
+    for i in range(n):
+        x, y = p[i, 0], p[i, 1]
+        v = hp[i]
         out[i] = v
+        if not (math.isfinite(x) and math.isfinite(y)) or not v > s_min:
+            continue
+        fx, fy = (x - x0) / size, (y - y0) / size
+        if 0.0 <= fx < nx and 0.0 <= fy < ny:
+            c = int(fy) * nx + int(fx)
+            if v <= cell[c, 0]:
+                continue
+            dx, dy = x - cell[c, 1], y - cell[c, 2]
+            v = min(v, cell[c, 3] + rate * math.sqrt(dx * dx + dy * dy))
+            if start[c] < start[c + 1]:
+                for q in range(start[c], start[c + 1]):
+                    if entries[q, 0] >= v:  # and so are the rest: sorted
+                        break
+                    k = int(entries[q, 1])
+                    dx = max(node[k, 0] - x, 0.0, x - node[k, 2])
+                    dy = max(node[k, 1] - y, 0.0, y - node[k, 3])
+                    if _beyond(r2 * (dx * dx + dy * dy), v, slack, node[k, 4]):
+                        continue
+                    for t in range(int(node[k, 5]), int(node[k, 6])):
+                        dx, dy = x - pts[t, 0], y - pts[t, 1]
+                        d2 = dx * dx + dy * dy
+                        if not _beyond(r2 * d2, v, slack, pts[t, 2]):
+                            v = min(v, pts[t, 2] + rate * math.sqrt(d2))
+                out[i] = v
+                continue
+        out[i], _ = _least(x, y, x, y, v, tree, stack)
     return out
