@@ -212,3 +212,37 @@ def test_repair_on_a_sub_mesh_leaves_the_rest_and_keeps_delaunay() -> None:
     opp = np.array([tri[u[i]][~np.isin(tri[u[i]], tri[t[i]])][0] for i in range(len(t))])
     ic = incircle_many(out[tri[t, 0]], out[tri[t, 1]], out[tri[t, 2]], out[opp])
     assert ic.max() <= 0
+
+
+def test_repair_rounds_stop_when_they_change_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Rounds that leave every part's worst triangle as it was, and none better, end after
+    REPAIR_STALL of them in a row (each would be thrown away); rounds that change something go
+    on to REPAIR_ROUNDS."""
+    import injmesh
+    from injmesh import smoothing as S
+
+    calls = {"n": 0}
+
+    def still(relax, p, tri, touched, iterations, ring=S.REPAIR_RING, steps=S.REPAIR_STEPS):  # type: ignore[no-untyped-def]
+        calls["n"] += 1
+        return p, tri, 0.0, 0
+
+    empty = np.zeros((0, 2), dtype=np.intp)
+    monkeypatch.setattr(S, "REPAIR_Q", 1.01)  # every triangle is "bad": the rounds always run
+    monkeypatch.setattr(S, "_choose_repairs", lambda relax, p, tri, bad: (empty, empty))
+    monkeypatch.setattr(S, "_patch", still)
+    injmesh.generate(Rectangle((0, 0), (1, 1)), 0.2)
+    assert calls["n"] == S.REPAIR_STALL + 1
+
+    # The same with rounds that move a node each time: every round runs.
+    calls["n"] = 0
+
+    def jiggle(relax, p, tri, touched, iterations, ring=S.REPAIR_RING, steps=S.REPAIR_STEPS):  # type: ignore[no-untyped-def]
+        calls["n"] += 1
+        p = p.copy()
+        p[relax.n_fixed:] += 1e-7 * (-1) ** calls["n"]  # every triangle with a free node changes
+        return p, tri, 0.0, 0
+
+    monkeypatch.setattr(S, "_patch", jiggle)
+    injmesh.generate(Rectangle((0, 0), (1, 1)), 0.2)
+    assert calls["n"] == S.REPAIR_ROUNDS

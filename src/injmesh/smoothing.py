@@ -207,6 +207,9 @@ MAX_ITERATIONS = 1000
 #: Triangles below this quality are repaired; at most REPAIR_ROUNDS rounds.
 REPAIR_Q = 0.85
 REPAIR_ROUNDS = 10
+#: ... ending early after this many rounds in a row that change no part's q_min (see
+#: ``_repair_rounds``).
+REPAIR_STALL = 2
 #: Spring steps after each repair round: the change is local and settles quickly.
 REPAIR_STEPS = 40
 #: Repair relaxes only the nodes within this many edges of the nodes it changed.
@@ -993,6 +996,8 @@ def _repair_rounds(
     rounds: list[tuple[FloatArray, IntArray, IntArray, IntArray]] = [(p, tri, cur_kept, label)]
     best = part_min(q, tri, label)
     best_round = np.zeros(n_parts, dtype=np.intp)
+    last: FloatArray | None = None
+    stalled = 0
     for _ in range(REPAIR_ROUNDS):
         bad = np.flatnonzero(q < REPAIR_Q)
         if len(bad) == 0:
@@ -1031,6 +1036,15 @@ def _repair_rounds(
         better = score > best
         best[better] = score[better]
         best_round[better] = len(rounds) - 1
+        # Rounds that leave every part's worst triangle exactly as it was, and none better
+        # than its best, are stuck on triangles they cannot change (on the 20,000-vertex
+        # outline, one part, a triangle at two fixed corners made in the first round): after
+        # REPAIR_STALL of them in a row the rest would be thrown away too.
+        same = last is not None and not better.any() and np.array_equal(score, last)
+        stalled = stalled + 1 if same else 0
+        last = score
+        if stalled >= REPAIR_STALL:
+            break
     if not best_round.any():
         return relax.p, relax.tri, kept, iterations, triangulations
     # Each part from its own best round; the nodes of a part are all in its triangles.
