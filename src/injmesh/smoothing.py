@@ -212,7 +212,7 @@ REPAIR_Q = 0.85
 REPAIR_ROUNDS = 10
 #: ... ending early after this many rounds in a row that change no part's q_min (see
 #: ``_repair_rounds``).
-REPAIR_STALL = 2
+REPAIR_STALL = 1
 #: Spring steps after each repair round: the change is local and settles quickly.
 REPAIR_STEPS = 40
 #: Repair relaxes only the nodes within this many edges of the nodes it changed.
