@@ -450,16 +450,10 @@ def _nearest_reference(p, seg_a, seg_b, prev):
     """``_nearest_on_boundary`` as it was: the default k-d tree's three nearest vertices."""
     from scipy.spatial import cKDTree
 
+    from injmesh.sizing.features import _nearest_of_segments
+
     _, near = cKDTree(seg_a).query(p, k=3)
-    cand = np.concatenate([near, prev[near]], axis=1)
-    a, b = seg_a[cand], seg_b[cand]
-    ab = b - a
-    L2 = np.maximum(np.einsum("nkj,nkj->nk", ab, ab), np.finfo(float).tiny)
-    t = np.clip(np.einsum("nkj,nkj->nk", p[:, None, :] - a, ab) / L2, 0.0, 1.0)
-    foot = a + t[..., None] * ab
-    dist = np.hypot(*(p[:, None, :] - foot).transpose(2, 0, 1))
-    best = np.argmin(dist, axis=1)
-    return dist[np.arange(len(p)), best], foot[np.arange(len(p)), best]
+    return _nearest_of_segments(p, np.concatenate([near, prev[near]], axis=1), seg_a, seg_b)
 
 
 @pytest.mark.parametrize("name", ["plates", "square", "large"])

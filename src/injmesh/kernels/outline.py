@@ -281,6 +281,14 @@ def _beyond(bound2, v, slack, least):  # type: ignore[no-untyped-def]
     return e < 0.0 or bound2 > e * e
 
 
+@nb.njit(cache=True, inline="always")
+def _gap(node, k, x0, y0, x1, y1):  # type: ignore[no-untyped-def]
+    """The x and y gaps between node k's box (row ``node[k, 0:4]``) and the box [x0, x1] x
+    [y0, y1] (0 where they overlap)."""
+    return (max(node[k, 0] - x1, 0.0, x0 - node[k, 2]),
+            max(node[k, 1] - y1, 0.0, y0 - node[k, 3]))
+
+
 @nb.njit(cache=True)
 def _leaves_below(x0, y0, x1, y1, u, tree, stack, found):  # type: ignore[no-untyped-def]
     """The leaves whose bound over the box [x0, x1] x [y0, y1] (``least spacing + rate *
@@ -294,8 +302,7 @@ def _leaves_below(x0, y0, x1, y1, u, tree, stack, found):  # type: ignore[no-unt
     while top > 0:
         top -= 1
         k = stack[top]
-        dx = max(node[k, 0] - x1, 0.0, x0 - node[k, 2])
-        dy = max(node[k, 1] - y1, 0.0, y0 - node[k, 3])
+        dx, dy = _gap(node, k, x0, y0, x1, y1)
         if _beyond(r2 * (dx * dx + dy * dy), u, slack, node[k, 4]):
             continue
         if k < first_leaf:
@@ -328,17 +335,14 @@ def _least(x0, y0, x1, y1, v, tree, stack):  # type: ignore[no-untyped-def]
     while top > 0:
         top -= 1
         k = stack[top]
-        dx = max(node[k, 0] - x1, 0.0, x0 - node[k, 2])
-        dy = max(node[k, 1] - y1, 0.0, y0 - node[k, 3])
+        dx, dy = _gap(node, k, x0, y0, x1, y1)
         if _beyond(r2 * (dx * dx + dy * dy), v, slack, node[k, 4]):
             continue
         if k < first_leaf:
             a, b = 2 * k + 1, 2 * k + 2
             # The nearer child is pushed last, so searched first (ties: the first child).
-            ax = max(node[a, 0] - x1, 0.0, x0 - node[a, 2])
-            ay = max(node[a, 1] - y1, 0.0, y0 - node[a, 3])
-            bx = max(node[b, 0] - x1, 0.0, x0 - node[b, 2])
-            by = max(node[b, 1] - y1, 0.0, y0 - node[b, 3])
+            ax, ay = _gap(node, a, x0, y0, x1, y1)
+            bx, by = _gap(node, b, x0, y0, x1, y1)
             if ax * ax + ay * ay <= bx * bx + by * by:
                 a, b = b, a
             stack[top] = a
@@ -397,8 +401,7 @@ def corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
                     if entries[q, 0] >= v:  # and so are the rest: sorted
                         break
                     k = int(entries[q, 1])
-                    dx = max(node[k, 0] - x, 0.0, x - node[k, 2])
-                    dy = max(node[k, 1] - y, 0.0, y - node[k, 3])
+                    dx, dy = _gap(node, k, x, y, x, y)
                     if _beyond(r2 * (dx * dx + dy * dy), v, slack, node[k, 4]):
                         continue
                     for t in range(int(node[k, 5]), int(node[k, 6])):
