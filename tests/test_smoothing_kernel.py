@@ -500,3 +500,60 @@ def test_repair_keeps_each_part_at_its_best_round() -> None:
         after = q1[np.hypot(*(c1 - centre).T) < 0.2].min()
         assert after >= before - 1e-12
     assert q1.min() > q0.min()
+
+
+def test_repair_leaves_a_part_pinned_by_a_fixed_triangle(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A part of the repair's sub-mesh whose worst triangle has three fixed nodes keeps that
+    q_min whatever a round does, so it gets no edits at all (its rounds could never be kept); a
+    second part far away, pinned by nothing, is repaired as before."""
+    from injmesh import generate
+    from injmesh import smoothing as S
+    from injmesh.quality import signed_areas, triangle_quality
+
+    square = Rectangle((0, 0), (1, 1))
+    mesh = generate(square, 0.02)
+    p = mesh.points.copy()
+    rng = np.random.default_rng(5)
+    for centre in ((0.25, 0.25), (0.75, 0.7)):  # jitter two clusters far apart
+        near = (np.hypot(*(p - centre).T) < 0.1) & (np.abs(square.sdf(p)) > 1e-12)
+        p[near] += rng.normal(0.0, 0.003, (int(near.sum()), 2))
+    t = delaunay(p).astype(np.intp)  # the square is convex: every Delaunay triangle is inside
+    q = triangle_quality(p, t)
+    centres = p[t].mean(axis=1)
+    first = np.hypot(*(centres - (0.25, 0.25)).T) < 0.2
+    worst = np.flatnonzero(first)[np.argmin(q[first])]
+    # Fixed: the boundary and the three nodes of the first cluster's worst triangle.
+    fixed = np.abs(square.sdf(p)) < 1e-12
+    fixed[t[worst]] = True
+    order = np.concatenate([np.flatnonzero(fixed), np.flatnonzero(~fixed)])
+    inv = np.empty_like(order)
+    inv[order] = np.arange(len(order))
+    p, t = p[order], inv[t]
+    n_fixed = int(fixed.sum())
+    near_first = np.hypot(*(p[t].mean(axis=1) - (0.25, 0.25)).T) < 0.2
+    others = near_first & (t.max(axis=1) >= n_fixed)
+    q = triangle_quality(p, t)
+    pinned_q = q[near_first & (t.max(axis=1) < n_fixed)].min()
+    assert pinned_q < q[others].min()
+
+    edited: list[np.ndarray] = []
+    choose = S._choose_repairs
+
+    def spy(relax, p, tri, bad):  # type: ignore[no-untyped-def]
+        edited.append(p[tri[bad]].mean(axis=1))
+        return choose(relax, p, tri, bad)
+
+    monkeypatch.setattr(S, "_choose_repairs", spy)
+    relax = S._Relaxation(square, lambda x: np.full(len(x), 0.02), p, n_fixed,
+                          np.zeros((0, 3), dtype=np.intp), np.zeros((0, 2), dtype=np.intp), None,
+                          1000, tri=t)
+    out_p, out_t, _, _, _ = S._repair(relax, np.arange(len(p)))
+    assert edited, "the unpinned part was not repaired"
+    for at in edited:  # no bad triangle of the pinned part was offered for an edit
+        assert (np.hypot(*(at - (0.25, 0.25)).T) > 0.2).all()
+    q1 = triangle_quality(out_p, out_t)
+    c1 = out_p[out_t].mean(axis=1)
+    assert q1[np.hypot(*(c1 - (0.25, 0.25)).T) < 0.2].min() == pinned_q
+    assert q1[np.hypot(*(c1 - (0.75, 0.7)).T) < 0.2].min() > q[
+        np.hypot(*(p[t].mean(axis=1) - (0.75, 0.7)).T) < 0.2].min()
+    assert (signed_areas(out_p, out_t) > 0).all()
