@@ -109,6 +109,27 @@ def test_rings_grow_by_one_edge_per_step() -> None:
     assert np.array_equal(two, ref)
 
 
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(2, 12), st.integers(40, 600), st.lists(st.integers(0, 10**6), max_size=60),
+       st.booleans())
+def test_one_ring_as_indices_is_the_ring_mask(k: int, n: int, raw: list[int], padded: bool) -> None:
+    """``ring_one`` lists what ``rings(..., 1)`` marks, sorted, whatever the number of seeds
+    (its two ways of listing: a sort of few, a scan of many), including rows with free slots
+    and repeated seeds, and leaves its scratch mask zeroed."""
+    from injmesh.kernels.smooth import pad_rows, ring_one
+
+    p, tri = _mesh(k, n)
+    indptr, adj, eid, _ = adjacency(len(p), tri)
+    if padded:
+        indptr, adj, eid = pad_rows(indptr, adj, eid, 3)
+    seeds = np.array([r % len(p) for r in raw], dtype=np.int64)
+    mark = np.zeros(len(p), dtype=np.uint8)
+    got = ring_one(indptr, adj, seeds, mark)
+    assert np.array_equal(got, np.flatnonzero(rings(indptr, adj, seeds, 1)))
+    assert not mark.any()
+
+
 _RUN = """
 import numpy as np, hashlib
 from injmesh import Circle, Rectangle, generate

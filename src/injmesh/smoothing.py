@@ -374,6 +374,8 @@ class _Relaxation:
         self._active = active
         self._sl = moving_slide
         self._moving = np.concatenate([self._free, moving_slide[:, 0]]).astype(np.intp)
+        #: A zeroed scratch mask over the nodes (``_refresh``).
+        self._mark = np.zeros(n, dtype=np.uint8)
         #: Nodes of the whole mesh (this may be a sub-mesh of it), and the weight of a step.
         self.total = n if total is None else int(total)
         self.weight = min(1.0, len(self._moving) / max(self.total, 1))
@@ -449,7 +451,8 @@ class _Relaxation:
         k.stable_scale(p, self._moving, indptr, adj, eid, ld, DT * hbar, STABLE_GAIN, self._damp)
         if len(self._sl):
             b, bp, bn = self._sl.T
-            self._ld_slide = (self.h(0.5 * (p[b] + p[bp])), self.h(0.5 * (p[b] + p[bn])))
+            self._ld_slide = (np.array(self.h(0.5 * (p[b] + p[bp])), dtype=np.float64),
+                              np.array(self.h(0.5 * (p[b] + p[bn])), dtype=np.float64))
         if len(self._d0) != len(p):
             self._d0 = np.zeros(len(p))
             self._deep = np.zeros(len(p), dtype=np.bool_)
@@ -554,10 +557,19 @@ class _Relaxation:
             ends = np.zeros(len(p), dtype=bool)
             ends[bars.ravel()] = True
             k.mean_bar_size_of(indptr, eid, ld, np.flatnonzero(ends), self.hbar)
-        if len(self._sl):
+        if len(self._sl) and len(nodes):
+            # Only the boundary bars with a node in ``nodes`` changed (on a detailed outline
+            # the sliding nodes are a fifth of the mesh, and h there is the costly corner cap).
             b, bp, bn = self._sl.T
-            self._ld_slide = (self.h(0.5 * (p[b] + p[bp])), self.h(0.5 * (p[b] + p[bn])))
-        near = np.flatnonzero(k.rings(indptr, self._csr[1], nodes.astype(np.int64), 1))
+            mark = self._mark
+            mark[nodes] = 1
+            rows = np.flatnonzero(mark[b] | mark[bp] | mark[bn])
+            mark[nodes] = 0
+            if len(rows):
+                b, bp, bn = b[rows], bp[rows], bn[rows]
+                self._ld_slide[0][rows] = self.h(0.5 * (p[b] + p[bp]))
+                self._ld_slide[1][rows] = self.h(0.5 * (p[b] + p[bn]))
+        near = k.ring_one(indptr, self._csr[1], nodes.astype(np.int64), self._mark)
         k.stable_scale(p, near, indptr, self._csr[1], eid, ld, DT * self.hbar, STABLE_GAIN, self._damp)
         self._inside_depth(nodes[self._is_free[nodes]])
         self.anchor[nodes] = p[nodes]
