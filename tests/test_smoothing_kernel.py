@@ -480,6 +480,40 @@ def test_quality_pass_raises_stars_and_keeps_the_mesh_valid(seed: int) -> None:
     assert after.mean() > before.mean()
 
 
+
+def test_quality_pass_moves_each_node_a_bounded_number_of_times(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Neighbours can take turns raising their own star and lowering the other's for ever: the
+    pass moves a node at most OPTIMIZE_MOVES times, so it ends on its own long before a large
+    sweep cap, and still leaves the worst triangle no worse."""
+    from injmesh import generate
+    from injmesh import smoothing as S
+    from injmesh.kernels import smooth as K
+    from injmesh.quality import signed_areas, triangle_quality
+
+    square = Rectangle((0, 0), (1, 1))
+    mesh = generate(square, 0.05)
+    p, t = mesh.points.copy(), mesh.triangles
+    on_boundary = np.abs(square.sdf(p)) < 1e-12
+    rng = np.random.default_rng(1)
+    jitter = rng.normal(0.0, 0.006, p.shape)
+    jitter[on_boundary] = 0.0
+    q_try = p + jitter
+    assert (signed_areas(q_try, t) > 0).all()
+    moved: list[np.ndarray] = []
+    restar = K.restar
+
+    def spy(p, tri, start, by_node, q, star, nodes):  # type: ignore[no-untyped-def]
+        moved.append(np.array(nodes))
+        return restar(p, tri, start, by_node, q, star, nodes)
+
+    monkeypatch.setattr(K, "restar", spy)
+    monkeypatch.setattr(S, "OPTIMIZE_SWEEPS", 1000)
+    out = S._optimize(square, q_try, t, ~on_boundary, on_boundary, mesh.boundary_edges)
+    counts = np.bincount(np.concatenate(moved), minlength=len(p))
+    assert 0 < counts.max() <= S.OPTIMIZE_MOVES
+    assert len(moved) < 1000
+    assert triangle_quality(out, t).min() >= triangle_quality(q_try, t).min()
+
 def test_repair_keeps_each_part_at_its_best_round() -> None:
     """Bad triangles in two clusters far apart make a sub-mesh of two parts that share no
     node: each part keeps its own best round, so neither ends worse than it started (a single

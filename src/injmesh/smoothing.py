@@ -33,7 +33,8 @@ Two bar forces are used, in this order (``smoothing="hybrid"``, the default):
    no edits: no round could raise its q_min (the 20,000-vertex outline: 2.6 s of rounds saved).
 4. **Quality pass.**  Free and sliding nodes of triangles with q < ``OPTIMIZE_Q`` move towards
    the mean equilateral apex over their opposite edges when that raises the worst quality of
-   their star (line search, connectivity kept).  Each sweep visits only those candidates'
+   their star (line search, connectivity kept; a node at most ``OPTIMIZE_MOVES`` times, and
+   not again until its star changes after a failed trial).  Each sweep visits only those candidates'
    stars; targets, trials and star updates are compiled (``kernels.smooth.star_targets``,
    ``star_trial``, ``restar``), the domain is asked once per trial length.
 
@@ -235,9 +236,17 @@ CONFORM_ROUNDS = 5
 RECOVER_ROUNDS = 4
 #: A missing segment is split only while longer than this fraction of h.
 SPLIT_MIN = 0.25
-#: Final quality-driven pass: nodes whose star has q below OPTIMIZE_Q, at most OPTIMIZE_SWEEPS.
+#: Final quality-driven pass: nodes whose star has q below OPTIMIZE_Q, at most OPTIMIZE_SWEEPS,
+#: each node moving at most OPTIMIZE_MOVES times.  Two neighbours can each raise their own
+#: star's minimum while lowering the other's, for ever: on the 20,000-vertex outline the same
+#: 994 nodes moved in each of the last twelve sweeps.  With at most 3 or 4 moves a node, and a
+#: node whose trial failed left out until its star changes, the paper's cases at h/2, h, 2h
+#: went from worst / mean q_min 0.821 / 0.8576 to 0.826 / 0.8722 (unbounded: 0.826 / 0.8680),
+#: the 1e5 square with regions from 0.774 to 0.823, the real outlines' 1 % quantile of q up
+#: by 0.02.
 OPTIMIZE_Q = 0.9
 OPTIMIZE_SWEEPS = 20
+OPTIMIZE_MOVES = 4
 
 
 @dataclass(frozen=True)
@@ -1496,7 +1505,9 @@ def _optimize(
     Only candidates are visited: each sweep works on the stars of the nodes whose star has
     q below ``OPTIMIZE_Q``, and q is recomputed only for the triangles that moved.  Since the
     moving nodes are independent, a node's star sees no other move, so this is the same
-    computation as over the whole mesh.
+    computation as over the whole mesh.  A node whose trial failed is no candidate until a
+    neighbour's move changes its star (the same trial would fail again, and it would keep
+    its neighbours out of the independent set); a node moves at most ``OPTIMIZE_MOVES`` times.
     """
     from .kernels.smooth import corners_by_node, restar, star_min, star_targets, star_trial
 
@@ -1514,9 +1525,13 @@ def _optimize(
     start, by_node = corners_by_node(t64, n)
     q = triangle_quality(p, tri)
     star = star_min(start, by_node, q)
+    moves = np.zeros(n, dtype=np.intp)
+    # Nodes whose last trial failed and whose star has not changed since: the same trial
+    # would fail again, so they are not candidates (nor block a neighbour's move).
+    failed = np.zeros(n, dtype=bool)
 
     for _ in range(OPTIMIZE_SWEEPS):
-        cand = (star < OPTIMIZE_Q) & movable
+        cand = (star < OPTIMIZE_Q) & movable & (moves < OPTIMIZE_MOVES) & ~failed
         if not cand.any():
             break
         # Independent set, worst stars first (ties by index).
@@ -1557,8 +1572,15 @@ def _optimize(
             done |= ok
         if not done.any():
             break
+        moved = move[done]
+        moves[moved] += 1
+        failed[move[~done]] = True
+        # The moved nodes' triangles changed, and with them the stars of all their nodes.
+        cnt = start[moved + 1] - start[moved]
+        offset = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        failed[t64[by_node[np.repeat(start[moved], cnt) + offset] // 3].ravel()] = False
         # q of the triangles that changed, and the stars of their nodes.
-        restar(p, t64, start, by_node, q, star, move[done])
+        restar(p, t64, start, by_node, q, star, moved)
     return p
 
 
