@@ -183,8 +183,8 @@ def mesh_boundary(
     pts, fixed, loop_id = [], [], []
     for k, loop in enumerate(loops):
         p, f = _insert_corners(loop, corners, on, diam)
-        p, f = _refine(domain, along, p, f)
-        p, f = _select(domain, along, p, f)
+        p, f, hp = _refine(domain, along, p, f)
+        p, f = _select(domain, p, f, hp)
         pts.append(p)
         fixed.append(f)
         loop_id.append(np.full(len(p), k))
@@ -656,11 +656,18 @@ def _nearest_segments(
 
 def _refine(
     domain: Domain, h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_]
-) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """Algorithm 2: inject h-weighted midpoints (3.1), project them (3.2), until resolved."""
+) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:
+    """Algorithm 2: inject h-weighted midpoints (3.1), project them (3.2), until resolved.
+
+    Returns the refined closed polyline, its fixed vertices and h at its vertices.  h is a
+    function of each point alone, so it is asked once per vertex, when the vertex is made (a
+    detailed outline's boundary grows from 20,000 to 100,000 vertices in a few rounds, and
+    asking h again at every vertex of every round cost seven times as many evaluations).
+    """
+    hp = h(p)
     for _ in range(40):
         q = np.roll(p, -1, axis=0)
-        hp, hq = h(p), h(q)
+        hq = np.roll(hp, -1)
         length = np.hypot(*(q - p).T)
         split = length > tol.BOUNDARY_REFINE * np.minimum(hp, hq)
         if not split.any():
@@ -672,15 +679,17 @@ def _refine(
         order = np.argsort(key, kind="stable")
         p = np.concatenate([p, new])[order]
         fixed = np.concatenate([fixed, np.zeros(len(new), dtype=bool)])[order]
-    return p, fixed
+        hp = np.concatenate([hp, h(new)])[order]
+    return p, fixed, hp
 
 
 def _select(
-    domain: Domain, h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_]
+    domain: Domain, p: FloatArray, fixed: NDArray[np.bool_], hp: FloatArray
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Lay ``round(S)`` segments at equal h-length between fixed vertices, then balance them.
 
-    ``p`` is the refined closed polyline of one loop, starting at a fixed vertex.  Nodes are
+    ``p`` is the refined closed polyline of one loop, starting at a fixed vertex, ``hp`` h at
+    its vertices (:func:`_refine`).  Nodes are
     handled by their arc length t along it, so balancing (Eq. 3.3) is truly one-dimensional:
     each node stays between the midpoints of its two segments and nodes can neither cross nor
     collapse, however few there are on a tightly curved loop (in the plane, chord midpoints
@@ -692,7 +701,7 @@ def _select(
     total = float(arc[-1])
     # h at the vertices of the refined curve (on the boundary; chord midpoints of a concave
     # curve are outside the domain, where h may mean nothing), linear along each segment.
-    hv = np.concatenate([h(p), [0.0]])
+    hv = np.concatenate([hp, [0.0]])
     hv[-1] = hv[0]
     ds = seglen / (0.5 * (hv[1:] + hv[:-1]))
     s = np.concatenate([[0.0], np.cumsum(ds)])
@@ -822,8 +831,8 @@ def mesh_curves(pieces: Sequence[Piece], h: SizeFn, diameter: float) -> CurveMes
             first = int(np.argmax(f))
             p, f = np.roll(p, -first, axis=0), np.roll(f, -first)
             p, f = np.concatenate([p, p[:1]]), np.r_[f, True]
-        p, f = _refine_open(piece.project, h, p, f)
-        out, fixed = _select_open(piece.project, h, p, f, piece.closed)
+        p, f, hp = _refine_open(piece.project, h, p, f)
+        out, fixed = _select_open(piece.project, p, f, hp, piece.closed)
         placed.append((out, fixed, piece.closed))
     # Junctions shared by pieces become one node each.
     junction = np.concatenate([o[f] for o, f, _ in placed]) if placed else np.empty((0, 2))
@@ -870,11 +879,14 @@ def mesh_curves(pieces: Sequence[Piece], h: SizeFn, diameter: float) -> CurveMes
 
 def _refine_open(
     project: Callable[[FloatArray], FloatArray], h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_]
-) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """Algorithm 2 on an open polyline (the curve's own projection in Eq. 3.2)."""
+) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:
+    """Algorithm 2 on an open polyline (the curve's own projection in Eq. 3.2); the refined
+    polyline, its fixed vertices and h at its vertices (asked once per vertex, as in
+    :func:`_refine`)."""
+    hp = h(p)
     for _ in range(40):
         a, b = p[:-1], p[1:]
-        ha, hb = h(a), h(b)
+        ha, hb = hp[:-1], hp[1:]
         split = np.hypot(*(b - a).T) > tol.BOUNDARY_REFINE * np.minimum(ha, hb)
         if not split.any():
             break
@@ -884,22 +896,23 @@ def _refine_open(
         order = np.argsort(key, kind="stable")
         p = np.concatenate([p, new])[order]
         fixed = np.concatenate([fixed, np.zeros(len(new), dtype=bool)])[order]
-    return p, fixed
+        hp = np.concatenate([hp, h(new)])[order]
+    return p, fixed, hp
 
 
 def _select_open(
     project: Callable[[FloatArray], FloatArray],
-    h: SizeFn,
     p: FloatArray,
     fixed: NDArray[np.bool_],
+    hv: FloatArray,
     closed: bool,
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """``round(S)`` segments at equal h-length between fixed vertices, balanced (Eq. 3.3) on
-    arc length, as :func:`_select` does on a loop; ``p`` starts and ends at fixed vertices."""
+    arc length, as :func:`_select` does on a loop; ``p`` starts and ends at fixed vertices,
+    ``hv`` is h at them."""
     seglen = np.hypot(*np.diff(p, axis=0).T)
     arc = np.concatenate([[0.0], np.cumsum(seglen)])
     total = float(arc[-1])
-    hv = h(p)
     s = np.concatenate([[0.0], np.cumsum(seglen / (0.5 * (hv[1:] + hv[:-1])))])
     fixed_idx = np.flatnonzero(fixed)
     s_start = s[fixed_idx[:-1]]
