@@ -225,6 +225,26 @@ def test_nearest_segments_agree_with_brute_force() -> None:
         assert np.array_equal(dist[np.arange(len(q)), seg], d)
 
 
+def test_nearest_segments_with_short_segments_far_apart() -> None:
+    # Short segments at the two ends of long ones (a huge grid of cells if its cells were as
+    # wide as the short segments), and points on a lattice of equal distances (ties).
+    from injmesh.boundary import _nearest_segments
+
+    rng = np.random.default_rng(2)
+    zig = np.stack([np.linspace(0, 1e-4, 40), 1e-5 * (np.arange(40) % 2)], axis=1)
+    a = np.concatenate([zig, zig[::-1] + [1e4, 1.0], [[1e4, 500.0], [0.0, 500.0]]])
+    ab = np.roll(a, -1, axis=0) - a
+    ab2 = np.einsum("ij,ij->i", ab, ab)
+    g = np.arange(-2, 3) * 2.5e-5
+    q = np.concatenate([np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2), a,
+                        rng.uniform((-1.0, -1.0), (1e4 + 1, 501.0), (200, 2))])
+    t = np.clip(np.einsum("cnk,nk->cn", q[:, None, :] - a, ab) / ab2, 0, 1)
+    dist = np.hypot(*(q[:, None, :] - (a + t[..., None] * ab)).transpose(2, 0, 1))
+    seg, _, d = _nearest_segments(q, a, ab, ab2)
+    assert np.array_equal(d, dist.min(axis=1))
+    assert np.array_equal(dist[np.arange(len(q)), seg], d)
+
+
 @pytest.mark.parametrize("angle", [6.0, 15.0])
 def test_sharp_tip_strip_is_well_shaped(angle: float) -> None:
     import warnings

@@ -346,3 +346,23 @@ def test_cone_index_leaf_rows_hold_every_corner_once() -> None:
             assert np.array_equal(lv[j, :, : hi - lo], pts[lo:hi].T)
             assert np.all(np.isinf(lv[j, 2, hi - lo:]))
         assert sorted(map(tuple, pts[:, :2])) == sorted(map(tuple, corners))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_points_in_balls_are_the_pairs_within_each_radius(seed: int) -> None:
+    from injmesh.kernels.outline import points_in_balls
+
+    rng = np.random.default_rng(seed)
+    v = rng.random((400, 2)) * [3.0, 1.0]
+    q = np.concatenate([rng.uniform(-0.5, 3.5, (150, 2)), v[:20]])
+    radius = 0.3 * rng.random(len(q))
+    radius[::17] = 0.0  # a point of v at the centre is still in the ball
+    radius[5] = np.inf
+    radius[7] = np.nan  # finds nothing
+    for size in (0.05, 0.2, 10.0):
+        rows, cols = points_in_balls(q, radius, v, size)
+        got = set(zip(rows.tolist(), cols.tolist(), strict=True))
+        d2 = ((q[:, None, :] - v[None, :, :]) ** 2).sum(axis=2)
+        want = set(zip(*np.nonzero(d2 <= radius[:, None] ** 2), strict=True))
+        assert got == {(int(i), int(j)) for i, j in want}
+        assert len(got) == len(rows)  # no pair twice

@@ -581,12 +581,18 @@ def _insert_corners(
         a, b = loop, np.roll(loop, -1, axis=0)
         ab = b - a
         ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
-        seg, near_t, near_d = _nearest_segments(corners, a, ab, ab2)
         # A corner belongs to this loop when the traced polyline passes close to it; traced
         # polylines cut corners by up to about a grid cell, hence the loose radius.
-        mine = near_d <= max(on, 2.0 * float(np.sqrt(ab2.max())))
+        radius = max(on, 2.0 * float(np.sqrt(ab2.max())))
+        # Only corners that near the loop's box are measured (the other loops' corners, far
+        # away, would each be measured against many of this loop's segments): a point's
+        # nearest segment does not depend on the other points asked.
+        gap = np.maximum(np.maximum(loop.min(axis=0) - corners, corners - loop.max(axis=0)), 0.0)
+        near = np.flatnonzero(np.hypot(gap[:, 0], gap[:, 1]) <= radius * (1 + 1e-9))
+        seg, near_t, near_d = _nearest_segments(corners[near], a, ab, ab2)
+        mine = near_d <= radius
         if mine.any():
-            seg, tt, c = seg[mine], near_t[mine], corners[mine]
+            seg, tt, c = seg[mine], near_t[mine], corners[near[mine]]
             # Vertices that coincide with a corner become that corner.
             key = np.concatenate([np.arange(n, dtype=float), seg + np.clip(tt, 1e-9, 1 - 1e-9)])
             allp = np.concatenate([loop, c])
@@ -618,11 +624,16 @@ def _nearest_segments(
 
     O((n + k) log n) for n segments of similar lengths: a segment within distance D of q has
     its midpoint within ``D + length / 2``, and D is at most the distance to the nearest segment
-    end, so only the segments whose midpoints lie in that ball are measured (k-d tree).
+    end, so only the segments whose midpoints lie in that ball are measured (a uniform grid of
+    the midpoints, :func:`injmesh.kernels.outline.points_in_balls`).
     Segments more than ``4x`` the median length would make every ball large: they are measured
     against every point, in chunks.
     """
+    from .kernels.outline import points_in_balls
+
     m = len(q)
+    if m == 0:
+        return np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0)
     length = np.sqrt(ab2)
     long = length > 4.0 * float(np.median(length))
     rows, cols = [np.empty(0, dtype=np.intp)], [np.empty(0, dtype=np.intp)]
@@ -630,11 +641,16 @@ def _nearest_segments(
     ends = np.concatenate([a[short], a[short] + ab[short]])
     reach, _ = cKDTree(ends).query(q)
     mid = a[short] + 0.5 * ab[short]
-    radius = (reach + 0.5 * float(length[short].max())) * (1 + 1e-9)  # rounding: keep the rim
-    balls = cKDTree(mid).query_ball_point(q, radius)
-    sizes = np.fromiter((len(b) for b in balls), dtype=np.intp, count=m)
-    rows.append(np.repeat(np.arange(m), sizes))
-    cols.append(short[np.concatenate([np.asarray(b, dtype=np.intp) for b in balls])])
+    half = 0.5 * float(length[short].max()) if len(short) else 0.0
+    radius = (reach + half) * (1 + 1e-9)  # rounding: keep the rim
+    # Cells as wide as the longest short segment: a ball (the distance to the nearest end plus
+    # half that length) overlaps a few cells; at most about 4 cells per segment (short
+    # segments far apart along long ones).
+    extent = float(np.ptp(mid, axis=0).max()) if len(mid) else 0.0
+    cell = max(2.0 * half, extent / (2.0 * np.sqrt(len(mid)) + 1.0), 1e-300)
+    r_, c_ = points_in_balls(q, radius, mid, cell)
+    rows.append(r_)
+    cols.append(short[c_])
     lg = np.flatnonzero(long)
     step = max(1, 4_000_000 // max(1, len(lg)))
     for s0 in range(0, m if len(lg) else 0, step):

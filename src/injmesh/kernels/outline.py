@@ -146,6 +146,50 @@ def facing_walls(v, prv, seg, seg_len, v_n, seg_n, radius, width, back_to_back, 
     return False, out_a[:m].copy(), out_f[:m].copy(), out_d[:m].copy()
 
 
+@nb.njit(cache=True)
+def points_in_balls(q, radius, v, size):  # type: ignore[no-untyped-def]
+    """Pairs (i, j) with ``|v_j - q_i| <= radius_i``, for points ``q (m, 2)``, radii
+    ``radius (m,)`` and points ``v (n, 2)``, from a uniform grid of cells ``size`` wide over v
+    (each ball looks at the cells its box overlaps): the rows i and the columns j, grouped by
+    i, in no particular order within a row.  A NaN radius finds nothing; squared distances are
+    compared with ``radius**2``.
+    """
+    m = q.shape[0]
+    rows = np.empty(max(4 * m, 16), dtype=np.int64)
+    cols = np.empty(max(4 * m, 16), dtype=np.int64)
+    k = 0
+    if v.shape[0] == 0 or not size > 0.0:
+        return rows[:0].copy(), cols[:0].copy()
+    cell, order, first, nx, ny = _cells(v, size)
+    x0, y0 = v[:, 0].min(), v[:, 1].min()
+    for i in range(m):
+        r = radius[i]
+        if not r >= 0.0:
+            continue
+        r2 = r * r
+        x, y = q[i, 0], q[i, 1]
+        # Cells overlapped by the ball's box, clipped to the grid as floats (an infinite or
+        # huge radius must not overflow an int).
+        gx0 = int(min(max(np.floor((x - r - x0) / size), 0.0), nx - 1.0))
+        gx1 = int(min(max(np.floor((x + r - x0) / size), -1.0), nx - 1.0))
+        gy0 = int(min(max(np.floor((y - r - y0) / size), 0.0), ny - 1.0))
+        gy1 = int(min(max(np.floor((y + r - y0) / size), -1.0), ny - 1.0))
+        for gy in range(gy0, gy1 + 1):
+            for gx in range(gx0, gx1 + 1):
+                c = gy * nx + gx
+                for t in range(first[c], first[c + 1]):
+                    j = order[t]
+                    dx, dy = v[j, 0] - x, v[j, 1] - y
+                    if dx * dx + dy * dy <= r2:
+                        if k == len(rows):
+                            rows = np.concatenate((rows, np.empty(k, dtype=np.int64)))
+                            cols = np.concatenate((cols, np.empty(k, dtype=np.int64)))
+                        rows[k] = i
+                        cols[k] = j
+                        k += 1
+    return rows[:k].copy(), cols[:k].copy()
+
+
 @nb.njit(cache=True, inline="always")
 def _judge(a, s, v, seg, seg_len, v_n, seg_n, width, back_to_back, cos):  # type: ignore[no-untyped-def]
     """Vertex a against segment s: 1 back to back, 2 facing, 0 neither; the foot, the distance."""
