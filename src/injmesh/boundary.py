@@ -704,12 +704,11 @@ def _select(
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Lay ``round(S)`` segments at equal h-length between fixed vertices, then balance them.
 
-    ``p`` is the refined closed polyline of one loop, starting at a fixed vertex, ``hp`` h at
-    its vertices (:func:`_refine`).  Nodes are
-    handled by their arc length t along it, so balancing (Eq. 3.3) is truly one-dimensional:
-    each node stays between the midpoints of its two segments and nodes can neither cross nor
-    collapse, however few there are on a tightly curved loop (in the plane, chord midpoints
-    and projection made Eq. 3.3 drift there).
+    ``p`` is the refined closed polyline of one loop, starting at a fixed vertex, and ``hp`` h
+    at its vertices (:func:`_refine`).  Nodes are handled by their arc length t along it, so
+    balancing (Eq. 3.3) is truly one-dimensional: each node stays between the midpoints of its
+    two segments and nodes can neither cross nor collapse, however few there are on a tightly
+    curved loop (in the plane, chord midpoints and projection made Eq. 3.3 drift there).
     """
     closed = np.concatenate([p, p[:1]])
     seglen = np.hypot(*np.diff(closed, axis=0).T)
