@@ -491,26 +491,46 @@ def _split_encroached(
     towards the slit's tip (a coastline's 12-degree land spike: 18 boundary nodes within
     1.7 h of the tip, slivers of q 0.13 fanning to them).
     """
+    # A segment is tested again only where its answer can change.  Its nodes never move and
+    # its diametral circle is fixed, so its set S of other nodes strictly inside the circle
+    # changes only when a new node lands there.  The three nearest nodes the test reads are
+    # S first (nearer than the segment's own ends), so with at most two nodes in S the test is
+    # "a node of S on the domain's side", whatever the tree returns on ties: a segment that
+    # was not split stays unsplit until a new node lands in its circle.  With three nodes or
+    # more in S, the three the tree returns can depend on its ties: such a segment is tested
+    # in every round, as all were.
+    ask = np.arange(len(p))
     for _ in range(tol.ENCROACH_ROUNDS):
         nxt = _next(node_loop)
         mid = 0.5 * (p + p[nxt])
         radius = 0.5 * np.hypot(*(p[nxt] - p).T)
         k = min(3, len(p))
-        dist, near = cKDTree(p).query(mid, k=k)
-        own = (near == np.arange(len(p))[:, None]) | (near == nxt[:, None])
+        dist, near = cKDTree(p).query(mid[ask], k=k)
+        own = (near == ask[:, None]) | (near == nxt[ask][:, None])
         # The domain is on the left of every loop: a node counts when it is left of a -> b.
-        e = p[nxt] - p
-        rel = p[near] - p[:, None, :]
+        e = p[nxt[ask]] - p[ask]
+        rel = p[near] - p[ask][:, None, :]
         left = e[:, None, 0] * rel[..., 1] - e[:, None, 1] * rel[..., 0] > 0
-        split = np.any(~own & left & (dist < radius[:, None] * (1 - 1e-9)), axis=1)
+        inside = ~own & (dist < radius[ask][:, None] * (1 - 1e-9))
+        split = np.zeros(len(p), dtype=bool)
+        split[ask] = np.any(inside & left, axis=1)
         if not split.any():
             break
+        crowded = np.zeros(len(p), dtype=bool)
+        crowded[ask] = inside.all(axis=1)
         new = domain.project(mid[split])
+        # Unsplit segments with a new node in their circle (the nearest new node suffices).
+        reached = np.zeros(len(p), dtype=bool)
+        gap, _ = cKDTree(new).query(mid)
+        reached[~split] = gap[~split] <= radius[~split] * (1 + 1e-9)
         key = np.concatenate([np.arange(len(p), dtype=float), np.flatnonzero(split) + 0.5])
         order = np.argsort(key, kind="stable")
         p = np.concatenate([p, new])[order]
         fixed = np.concatenate([fixed, np.zeros(len(new), dtype=bool)])[order]
         node_loop = np.concatenate([node_loop, node_loop[split]])[order]
+        # Next round: both halves of every split segment, and the segments above.
+        again = np.concatenate([split | reached | crowded, np.ones(len(new), dtype=bool)])[order]
+        ask = np.flatnonzero(again)
     return p, fixed, node_loop
 
 
