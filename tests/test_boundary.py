@@ -225,6 +225,26 @@ def test_nearest_segments_agree_with_brute_force() -> None:
         assert np.array_equal(dist[np.arange(len(q)), seg], d)
 
 
+def test_nearest_segments_with_short_segments_far_apart() -> None:
+    # Short segments at the two ends of long ones (a huge grid of cells if its cells were as
+    # wide as the short segments), and points on a lattice of equal distances (ties).
+    from injmesh.boundary import _nearest_segments
+
+    rng = np.random.default_rng(2)
+    zig = np.stack([np.linspace(0, 1e-4, 40), 1e-5 * (np.arange(40) % 2)], axis=1)
+    a = np.concatenate([zig, zig[::-1] + [1e4, 1.0], [[1e4, 500.0], [0.0, 500.0]]])
+    ab = np.roll(a, -1, axis=0) - a
+    ab2 = np.einsum("ij,ij->i", ab, ab)
+    g = np.arange(-2, 3) * 2.5e-5
+    q = np.concatenate([np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2), a,
+                        rng.uniform((-1.0, -1.0), (1e4 + 1, 501.0), (200, 2))])
+    t = np.clip(np.einsum("cnk,nk->cn", q[:, None, :] - a, ab) / ab2, 0, 1)
+    dist = np.hypot(*(q[:, None, :] - (a + t[..., None] * ab)).transpose(2, 0, 1))
+    seg, _, d = _nearest_segments(q, a, ab, ab2)
+    assert np.array_equal(d, dist.min(axis=1))
+    assert np.array_equal(dist[np.arange(len(q)), seg], d)
+
+
 @pytest.mark.parametrize("angle", [6.0, 15.0])
 def test_sharp_tip_strip_is_well_shaped(angle: float) -> None:
     import warnings
@@ -265,3 +285,83 @@ def test_a_narrow_slit_of_outside_does_not_crowd_its_walls(half_width: float) ->
     mesh = generate(slit, 0.1)
     assert mesh.stats.valid
     assert mesh.quality().min() > 0.6
+
+
+def _split_encroached_reference(domain, p, fixed, node_loop, rounds):  # type: ignore[no-untyped-def]
+    """Every segment tested in every round (what boundary._split_encroached did before it
+    tested only the segments whose answer can change)."""
+    from scipy.spatial import cKDTree
+
+    from injmesh.boundary import _next
+
+    for _ in range(rounds):
+        nxt = _next(node_loop)
+        mid = 0.5 * (p + p[nxt])
+        radius = 0.5 * np.hypot(*(p[nxt] - p).T)
+        dist, near = cKDTree(p).query(mid, k=min(3, len(p)))
+        own = (near == np.arange(len(p))[:, None]) | (near == nxt[:, None])
+        e = p[nxt] - p
+        rel = p[near] - p[:, None, :]
+        left = e[:, None, 0] * rel[..., 1] - e[:, None, 1] * rel[..., 0] > 0
+        split = np.any(~own & left & (dist < radius[:, None] * (1 - 1e-9)), axis=1)
+        if not split.any():
+            break
+        new = domain.project(mid[split])
+        key = np.concatenate([np.arange(len(p), dtype=float), np.flatnonzero(split) + 0.5])
+        order = np.argsort(key, kind="stable")
+        p = np.concatenate([p, new])[order]
+        fixed = np.concatenate([fixed, np.zeros(len(new), dtype=bool)])[order]
+        node_loop = np.concatenate([node_loop, node_loop[split]])[order]
+    return p, fixed, node_loop
+
+
+@pytest.mark.parametrize("side", [0.02, 0.05])
+def test_split_encroached_equals_testing_every_segment_every_round(side: float) -> None:
+    # Square holes on a lattice just inside a square whose boundary nodes are far apart: many
+    # nodes inside each diametral circle, at equal distances (ties), split over several rounds.
+    from injmesh import _tolerances as tol
+    from injmesh.boundary import _split_encroached
+
+    outer = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    holes = []
+    near, far = 0.04 + side / 2, 0.96 - side / 2
+    for x in (np.arange(4) + 0.5) / 4:
+        for cx, cy in ((x, near), (x, far), (near, x), (far, x)):
+            holes.append(np.array([[cx - side / 2, cy - side / 2], [cx - side / 2, cy + side / 2],
+                                   [cx + side / 2, cy + side / 2], [cx + side / 2, cy - side / 2]]))
+    domain = Polygon(outer, holes=holes)
+    for per_side in (1, 2, 3):
+        t = np.linspace(0, 1, per_side + 1)[:-1, None]
+        ends = zip(outer, np.roll(outer, -1, axis=0), strict=True)
+        ring = np.concatenate([a + t * (b - a) for a, b in ends])
+        p = np.concatenate([ring, *holes])
+        node_loop = np.repeat(np.arange(len(holes) + 1), [len(ring)] + [4] * len(holes))
+        fixed = np.zeros(len(p), dtype=bool)
+        got = _split_encroached(domain, p, fixed, node_loop)
+        want = _split_encroached_reference(domain, p, fixed, node_loop, tol.ENCROACH_ROUNDS)
+        assert len(got[0]) > len(p)  # something was split
+        for g, w in zip(got, want, strict=True):
+            assert np.array_equal(g, w)
+
+
+@pytest.mark.parametrize("width", [0.03, 0.08])
+def test_split_encroached_follows_new_nodes_across_a_channel(width: float) -> None:
+    # A narrow strip whose two walls carry nodes at different spacings: a node inserted on one
+    # wall lands in the diametral circles of the other wall's segments, which must be tested
+    # again in the next round.
+    from injmesh import _tolerances as tol
+    from injmesh.boundary import _split_encroached
+
+    for n_bottom, n_top, shift in ((3, 4, 0.0), (5, 3, 0.37), (4, 7, 0.37)):
+        bottom = np.stack([np.arange(n_bottom) / n_bottom, np.zeros(n_bottom)], axis=1)
+        top = np.stack([1 - (np.arange(n_top) + shift) / n_top, np.full(n_top, width)], axis=1)
+        ring = np.concatenate([bottom, [[1.0, 0.0], [1.0, width]], top[top[:, 0] < 1], [[0.0, width]]])
+        _, first = np.unique(ring.round(12), axis=0, return_index=True)
+        ring = ring[np.sort(first)]
+        node_loop, fixed = np.zeros(len(ring), dtype=int), np.zeros(len(ring), dtype=bool)
+        domain = Polygon(ring)
+        got = _split_encroached(domain, ring, fixed, node_loop)
+        want = _split_encroached_reference(domain, ring, fixed, node_loop, tol.ENCROACH_ROUNDS)
+        assert len(got[0]) > len(ring)
+        for g, w in zip(got, want, strict=True):
+            assert np.array_equal(g, w)

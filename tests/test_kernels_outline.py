@@ -306,3 +306,63 @@ def test_corner_size_on_a_small_cluster_of_corners_is_fast_far_away() -> None:
     p = np.random.default_rng(0).uniform(-2, 2, (20000, 2))
     out = cap(p)
     assert np.array_equal(out, _cones_reference(p, 0.2 + np.hypot(*p.T), cap.corners, cap.spacing, 0.2))
+
+
+def test_corner_cones_do_not_depend_on_the_order_of_the_points() -> None:
+    # A point starts from the leaf of its predecessor's minimum: the order of a batch may change
+    # the work, never a value.  Mesh-like order (sorted along the outline), shuffled, reversed.
+    from injmesh.kernels.outline import cone_index, corner_cones
+
+    rng = np.random.default_rng(6)
+    ring = np.ascontiguousarray(shapes.large(3, n_vertices=1500).rings[0], dtype=float)
+    spacing = np.hypot(*(np.roll(ring, -1, axis=0) - ring).T)
+    index = cone_index(ring, spacing, 0.2, 8, 0.1, 2.0 * len(ring), 0.05)
+    # Points near the outline in its order (each a little off a vertex), then uniform ones.
+    near = np.repeat(ring, 4, axis=0) + 0.01 * rng.standard_normal((4 * len(ring), 2))
+    lo, hi = ring.min(axis=0), ring.max(axis=0)
+    p = np.concatenate([near, rng.uniform(lo - 0.1, hi + 0.1, (3000, 2))])
+    hp = np.full(len(p), 0.05)
+    ref = _cones_reference(p, hp, ring, spacing, 0.2)
+    assert np.array_equal(corner_cones(p, hp, index), ref)
+    for order in (rng.permutation(len(p)), np.arange(len(p))[::-1]):
+        q = np.ascontiguousarray(p[order])
+        assert np.array_equal(corner_cones(q, hp[order], index), ref[order])
+
+
+def test_cone_index_leaf_rows_hold_every_corner_once() -> None:
+    # The padded leaf rows are a copy of the tree's corners: each corner in its leaf's row,
+    # every padding lane an infinite cone.
+    from injmesh.kernels.outline import cone_index
+
+    rng = np.random.default_rng(7)
+    for n, leaf in ((1, 8), (5, 1), (37, 3), (1000, 8)):
+        corners = rng.random((n, 2))
+        spacing = 0.001 + 0.01 * rng.random(n)
+        (_, _, first_leaf, node, pts), grid = cone_index(corners, spacing, 0.2, leaf, 0.1, 2.0 * n, 1.0)
+        lv = grid[-1]
+        assert lv.shape[2] % 4 == 0 and len(lv) == len(node) - first_leaf
+        for j in range(len(lv)):
+            lo, hi = int(node[first_leaf + j, 5]), int(node[first_leaf + j, 6])
+            assert np.array_equal(lv[j, :, : hi - lo], pts[lo:hi].T)
+            assert np.all(np.isinf(lv[j, 2, hi - lo:]))
+        assert sorted(map(tuple, pts[:, :2])) == sorted(map(tuple, corners))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_points_in_balls_are_the_pairs_within_each_radius(seed: int) -> None:
+    from injmesh.kernels.outline import points_in_balls
+
+    rng = np.random.default_rng(seed)
+    v = rng.random((400, 2)) * [3.0, 1.0]
+    q = np.concatenate([rng.uniform(-0.5, 3.5, (150, 2)), v[:20]])
+    radius = 0.3 * rng.random(len(q))
+    radius[::17] = 0.0  # a point of v at the centre is still in the ball
+    radius[5] = np.inf
+    radius[7] = np.nan  # finds nothing
+    for size in (0.05, 0.2, 10.0):
+        rows, cols = points_in_balls(q, radius, v, size)
+        got = set(zip(rows.tolist(), cols.tolist(), strict=True))
+        d2 = ((q[:, None, :] - v[None, :, :]) ** 2).sum(axis=2)
+        want = set(zip(*np.nonzero(d2 <= radius[:, None] ** 2), strict=True))
+        assert got == {(int(i), int(j)) for i, j in want}
+        assert len(got) == len(rows)  # no pair twice

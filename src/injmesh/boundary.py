@@ -183,8 +183,8 @@ def mesh_boundary(
     pts, fixed, loop_id = [], [], []
     for k, loop in enumerate(loops):
         p, f = _insert_corners(loop, corners, on, diam)
-        p, f = _refine(domain, along, p, f)
-        p, f = _select(domain, along, p, f)
+        p, f, hp = _refine(domain, along, p, f)
+        p, f = _select(domain, p, f, hp)
         pts.append(p)
         fixed.append(f)
         loop_id.append(np.full(len(p), k))
@@ -491,26 +491,46 @@ def _split_encroached(
     towards the slit's tip (a coastline's 12-degree land spike: 18 boundary nodes within
     1.7 h of the tip, slivers of q 0.13 fanning to them).
     """
+    # A segment is tested again only where its answer can change.  Its nodes never move and
+    # its diametral circle is fixed, so its set S of other nodes strictly inside the circle
+    # changes only when a new node lands there.  The three nearest nodes the test reads are
+    # S first (nearer than the segment's own ends), so with at most two nodes in S the test is
+    # "a node of S on the domain's side", whatever the tree returns on ties: a segment that
+    # was not split stays unsplit until a new node lands in its circle.  With three nodes or
+    # more in S, the three the tree returns can depend on its ties: such a segment is tested
+    # in every round, as all were.
+    ask = np.arange(len(p))
     for _ in range(tol.ENCROACH_ROUNDS):
         nxt = _next(node_loop)
         mid = 0.5 * (p + p[nxt])
         radius = 0.5 * np.hypot(*(p[nxt] - p).T)
         k = min(3, len(p))
-        dist, near = cKDTree(p).query(mid, k=k)
-        own = (near == np.arange(len(p))[:, None]) | (near == nxt[:, None])
+        dist, near = cKDTree(p).query(mid[ask], k=k)
+        own = (near == ask[:, None]) | (near == nxt[ask][:, None])
         # The domain is on the left of every loop: a node counts when it is left of a -> b.
-        e = p[nxt] - p
-        rel = p[near] - p[:, None, :]
+        e = p[nxt[ask]] - p[ask]
+        rel = p[near] - p[ask][:, None, :]
         left = e[:, None, 0] * rel[..., 1] - e[:, None, 1] * rel[..., 0] > 0
-        split = np.any(~own & left & (dist < radius[:, None] * (1 - 1e-9)), axis=1)
+        inside = ~own & (dist < radius[ask][:, None] * (1 - 1e-9))
+        split = np.zeros(len(p), dtype=bool)
+        split[ask] = np.any(inside & left, axis=1)
         if not split.any():
             break
+        crowded = np.zeros(len(p), dtype=bool)
+        crowded[ask] = inside.all(axis=1)
         new = domain.project(mid[split])
+        # Unsplit segments with a new node in their circle (the nearest new node suffices).
+        reached = np.zeros(len(p), dtype=bool)
+        gap, _ = cKDTree(new).query(mid)
+        reached[~split] = gap[~split] <= radius[~split] * (1 + 1e-9)
         key = np.concatenate([np.arange(len(p), dtype=float), np.flatnonzero(split) + 0.5])
         order = np.argsort(key, kind="stable")
         p = np.concatenate([p, new])[order]
         fixed = np.concatenate([fixed, np.zeros(len(new), dtype=bool)])[order]
         node_loop = np.concatenate([node_loop, node_loop[split]])[order]
+        # Next round: both halves of every split segment, and the segments above.
+        again = np.concatenate([split | reached | crowded, np.ones(len(new), dtype=bool)])[order]
+        ask = np.flatnonzero(again)
     return p, fixed, node_loop
 
 
@@ -581,12 +601,18 @@ def _insert_corners(
         a, b = loop, np.roll(loop, -1, axis=0)
         ab = b - a
         ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
-        seg, near_t, near_d = _nearest_segments(corners, a, ab, ab2)
         # A corner belongs to this loop when the traced polyline passes close to it; traced
         # polylines cut corners by up to about a grid cell, hence the loose radius.
-        mine = near_d <= max(on, 2.0 * float(np.sqrt(ab2.max())))
+        radius = max(on, 2.0 * float(np.sqrt(ab2.max())))
+        # Only corners that near the loop's box are measured (the other loops' corners, far
+        # away, would each be measured against many of this loop's segments): a point's
+        # nearest segment does not depend on the other points asked.
+        gap = np.maximum(np.maximum(loop.min(axis=0) - corners, corners - loop.max(axis=0)), 0.0)
+        near = np.flatnonzero(np.hypot(gap[:, 0], gap[:, 1]) <= radius * (1 + 1e-9))
+        seg, near_t, near_d = _nearest_segments(corners[near], a, ab, ab2)
+        mine = near_d <= radius
         if mine.any():
-            seg, tt, c = seg[mine], near_t[mine], corners[mine]
+            seg, tt, c = seg[mine], near_t[mine], corners[near[mine]]
             # Vertices that coincide with a corner become that corner.
             key = np.concatenate([np.arange(n, dtype=float), seg + np.clip(tt, 1e-9, 1 - 1e-9)])
             allp = np.concatenate([loop, c])
@@ -618,11 +644,16 @@ def _nearest_segments(
 
     O((n + k) log n) for n segments of similar lengths: a segment within distance D of q has
     its midpoint within ``D + length / 2``, and D is at most the distance to the nearest segment
-    end, so only the segments whose midpoints lie in that ball are measured (k-d tree).
+    end, so only the segments whose midpoints lie in that ball are measured (a uniform grid of
+    the midpoints, :func:`injmesh.kernels.outline.points_in_balls`).
     Segments more than ``4x`` the median length would make every ball large: they are measured
     against every point, in chunks.
     """
+    from .kernels.outline import points_in_balls
+
     m = len(q)
+    if m == 0:
+        return np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0)
     length = np.sqrt(ab2)
     long = length > 4.0 * float(np.median(length))
     rows, cols = [np.empty(0, dtype=np.intp)], [np.empty(0, dtype=np.intp)]
@@ -630,11 +661,16 @@ def _nearest_segments(
     ends = np.concatenate([a[short], a[short] + ab[short]])
     reach, _ = cKDTree(ends).query(q)
     mid = a[short] + 0.5 * ab[short]
-    radius = (reach + 0.5 * float(length[short].max())) * (1 + 1e-9)  # rounding: keep the rim
-    balls = cKDTree(mid).query_ball_point(q, radius)
-    sizes = np.fromiter((len(b) for b in balls), dtype=np.intp, count=m)
-    rows.append(np.repeat(np.arange(m), sizes))
-    cols.append(short[np.concatenate([np.asarray(b, dtype=np.intp) for b in balls])])
+    half = 0.5 * float(length[short].max()) if len(short) else 0.0
+    radius = (reach + half) * (1 + 1e-9)  # rounding: keep the rim
+    # Cells as wide as the longest short segment: a ball (the distance to the nearest end plus
+    # half that length) overlaps a few cells; at most about 4 cells per segment (short
+    # segments far apart along long ones).
+    extent = float(np.ptp(mid, axis=0).max()) if len(mid) else 0.0
+    cell = max(2.0 * half, extent / (2.0 * np.sqrt(len(mid)) + 1.0), 1e-300)
+    r_, c_ = points_in_balls(q, radius, mid, cell)
+    rows.append(r_)
+    cols.append(short[c_])
     lg = np.flatnonzero(long)
     step = max(1, 4_000_000 // max(1, len(lg)))
     for s0 in range(0, m if len(lg) else 0, step):
@@ -656,11 +692,18 @@ def _nearest_segments(
 
 def _refine(
     domain: Domain, h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_]
-) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """Algorithm 2: inject h-weighted midpoints (3.1), project them (3.2), until resolved."""
+) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:
+    """Algorithm 2: inject h-weighted midpoints (3.1), project them (3.2), until resolved.
+
+    Returns the refined closed polyline, its fixed vertices and h at its vertices.  h is a
+    function of each point alone, so it is asked once per vertex, when the vertex is made (a
+    detailed outline's boundary grows from 20,000 to 100,000 vertices in a few rounds, and
+    asking h again at every vertex of every round cost seven times as many evaluations).
+    """
+    hp = h(p)
     for _ in range(40):
         q = np.roll(p, -1, axis=0)
-        hp, hq = h(p), h(q)
+        hq = np.roll(hp, -1)
         length = np.hypot(*(q - p).T)
         split = length > tol.BOUNDARY_REFINE * np.minimum(hp, hq)
         if not split.any():
@@ -672,19 +715,20 @@ def _refine(
         order = np.argsort(key, kind="stable")
         p = np.concatenate([p, new])[order]
         fixed = np.concatenate([fixed, np.zeros(len(new), dtype=bool)])[order]
-    return p, fixed
+        hp = np.concatenate([hp, h(new)])[order]
+    return p, fixed, hp
 
 
 def _select(
-    domain: Domain, h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_]
+    domain: Domain, p: FloatArray, fixed: NDArray[np.bool_], hp: FloatArray
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Lay ``round(S)`` segments at equal h-length between fixed vertices, then balance them.
 
-    ``p`` is the refined closed polyline of one loop, starting at a fixed vertex.  Nodes are
-    handled by their arc length t along it, so balancing (Eq. 3.3) is truly one-dimensional:
-    each node stays between the midpoints of its two segments and nodes can neither cross nor
-    collapse, however few there are on a tightly curved loop (in the plane, chord midpoints
-    and projection made Eq. 3.3 drift there).
+    ``p`` is the refined closed polyline of one loop, starting at a fixed vertex, and ``hp`` h
+    at its vertices (:func:`_refine`).  Nodes are handled by their arc length t along it, so
+    balancing (Eq. 3.3) is truly one-dimensional: each node stays between the midpoints of its
+    two segments and nodes can neither cross nor collapse, however few there are on a tightly
+    curved loop (in the plane, chord midpoints and projection made Eq. 3.3 drift there).
     """
     closed = np.concatenate([p, p[:1]])
     seglen = np.hypot(*np.diff(closed, axis=0).T)
@@ -692,7 +736,7 @@ def _select(
     total = float(arc[-1])
     # h at the vertices of the refined curve (on the boundary; chord midpoints of a concave
     # curve are outside the domain, where h may mean nothing), linear along each segment.
-    hv = np.concatenate([h(p), [0.0]])
+    hv = np.concatenate([hp, [0.0]])
     hv[-1] = hv[0]
     ds = seglen / (0.5 * (hv[1:] + hv[:-1]))
     s = np.concatenate([[0.0], np.cumsum(ds)])
@@ -822,8 +866,8 @@ def mesh_curves(pieces: Sequence[Piece], h: SizeFn, diameter: float) -> CurveMes
             first = int(np.argmax(f))
             p, f = np.roll(p, -first, axis=0), np.roll(f, -first)
             p, f = np.concatenate([p, p[:1]]), np.r_[f, True]
-        p, f = _refine_open(piece.project, h, p, f)
-        out, fixed = _select_open(piece.project, h, p, f, piece.closed)
+        p, f, hp = _refine_open(piece.project, h, p, f)
+        out, fixed = _select_open(piece.project, p, f, hp, piece.closed)
         placed.append((out, fixed, piece.closed))
     # Junctions shared by pieces become one node each.
     junction = np.concatenate([o[f] for o, f, _ in placed]) if placed else np.empty((0, 2))
@@ -870,11 +914,14 @@ def mesh_curves(pieces: Sequence[Piece], h: SizeFn, diameter: float) -> CurveMes
 
 def _refine_open(
     project: Callable[[FloatArray], FloatArray], h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_]
-) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """Algorithm 2 on an open polyline (the curve's own projection in Eq. 3.2)."""
+) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:
+    """Algorithm 2 on an open polyline (the curve's own projection in Eq. 3.2); the refined
+    polyline, its fixed vertices and h at its vertices (asked once per vertex, as in
+    :func:`_refine`)."""
+    hp = h(p)
     for _ in range(40):
         a, b = p[:-1], p[1:]
-        ha, hb = h(a), h(b)
+        ha, hb = hp[:-1], hp[1:]
         split = np.hypot(*(b - a).T) > tol.BOUNDARY_REFINE * np.minimum(ha, hb)
         if not split.any():
             break
@@ -884,22 +931,23 @@ def _refine_open(
         order = np.argsort(key, kind="stable")
         p = np.concatenate([p, new])[order]
         fixed = np.concatenate([fixed, np.zeros(len(new), dtype=bool)])[order]
-    return p, fixed
+        hp = np.concatenate([hp, h(new)])[order]
+    return p, fixed, hp
 
 
 def _select_open(
     project: Callable[[FloatArray], FloatArray],
-    h: SizeFn,
     p: FloatArray,
     fixed: NDArray[np.bool_],
+    hv: FloatArray,
     closed: bool,
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """``round(S)`` segments at equal h-length between fixed vertices, balanced (Eq. 3.3) on
-    arc length, as :func:`_select` does on a loop; ``p`` starts and ends at fixed vertices."""
+    arc length, as :func:`_select` does on a loop; ``p`` starts and ends at fixed vertices,
+    ``hv`` is h at them."""
     seglen = np.hypot(*np.diff(p, axis=0).T)
     arc = np.concatenate([[0.0], np.cumsum(seglen)])
     total = float(arc[-1])
-    hv = h(p)
     s = np.concatenate([[0.0], np.cumsum(seglen / (0.5 * (hv[1:] + hv[:-1])))])
     fixed_idx = np.flatnonzero(fixed)
     s_start = s[fixed_idx[:-1]]

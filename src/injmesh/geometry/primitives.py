@@ -351,7 +351,9 @@ class Rectangle(Polygon):
 def _shoelace(v: FloatArray) -> float:
     v = v - v[0]  # relative to a vertex of its own: no cancellation far from the origin
     x, y = v[:, 0], v[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+    # Sums, not np.dot: BLAS splits a long dot product among its threads (the result then
+    # depends on their number) and waits for them (milliseconds on a busy machine).
+    return 0.5 * float(np.sum(x * np.roll(y, -1)) - np.sum(y * np.roll(x, -1)))
 
 
 def _read_ring(vertices: ArrayLike, name: str) -> tuple[FloatArray, int]:

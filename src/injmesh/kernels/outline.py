@@ -19,7 +19,11 @@ builds once: a k-d tree of the corners whose nodes know their least spacing (a n
 ``least spacing + rate * distance`` cannot beat the value so far is skipped), and a grid whose
 cells keep a lower bound of the cones over them (a point no cone can reach is done at once), a
 seed corner (a near-final first value) and the list of the tree's leaves that can hold the
-minimum somewhere in the cell, so that a point walks a few leaves instead of the tree.
+minimum somewhere in the cell, so that a point walks a few leaves instead of the tree.  A leaf
+is read whole, without a branch per corner (its corners are packed in padded rows the compiler
+vectorizes), and a point starts from the leaf that held its predecessor's minimum: the points
+of a batch come in mesh order, so that leaf is nearly always the answer and the walk stops at
+the first few list entries.
 """
 
 from __future__ import annotations
@@ -142,6 +146,50 @@ def facing_walls(v, prv, seg, seg_len, v_n, seg_n, radius, width, back_to_back, 
     return False, out_a[:m].copy(), out_f[:m].copy(), out_d[:m].copy()
 
 
+@nb.njit(cache=True)
+def points_in_balls(q, radius, v, size):  # type: ignore[no-untyped-def]
+    """Pairs (i, j) with ``|v_j - q_i| <= radius_i``, for points ``q (m, 2)``, radii
+    ``radius (m,)`` and points ``v (n, 2)``, from a uniform grid of cells ``size`` wide over v
+    (each ball looks at the cells its box overlaps): the rows i and the columns j, grouped by
+    i, in no particular order within a row.  A NaN radius finds nothing; squared distances are
+    compared with ``radius**2``.
+    """
+    m = q.shape[0]
+    rows = np.empty(max(4 * m, 16), dtype=np.int64)
+    cols = np.empty(max(4 * m, 16), dtype=np.int64)
+    k = 0
+    if v.shape[0] == 0 or not size > 0.0:
+        return rows[:0].copy(), cols[:0].copy()
+    cell, order, first, nx, ny = _cells(v, size)
+    x0, y0 = v[:, 0].min(), v[:, 1].min()
+    for i in range(m):
+        r = radius[i]
+        if not r >= 0.0:
+            continue
+        r2 = r * r
+        x, y = q[i, 0], q[i, 1]
+        # Cells overlapped by the ball's box, clipped to the grid as floats (an infinite or
+        # huge radius must not overflow an int).
+        gx0 = int(min(max(np.floor((x - r - x0) / size), 0.0), nx - 1.0))
+        gx1 = int(min(max(np.floor((x + r - x0) / size), -1.0), nx - 1.0))
+        gy0 = int(min(max(np.floor((y - r - y0) / size), 0.0), ny - 1.0))
+        gy1 = int(min(max(np.floor((y + r - y0) / size), -1.0), ny - 1.0))
+        for gy in range(gy0, gy1 + 1):
+            for gx in range(gx0, gx1 + 1):
+                c = gy * nx + gx
+                for t in range(first[c], first[c + 1]):
+                    j = order[t]
+                    dx, dy = v[j, 0] - x, v[j, 1] - y
+                    if dx * dx + dy * dy <= r2:
+                        if k == len(rows):
+                            rows = np.concatenate((rows, np.empty(k, dtype=np.int64)))
+                            cols = np.concatenate((cols, np.empty(k, dtype=np.int64)))
+                        rows[k] = i
+                        cols[k] = j
+                        k += 1
+    return rows[:k].copy(), cols[:k].copy()
+
+
 @nb.njit(cache=True, inline="always")
 def _judge(a, s, v, seg, seg_len, v_n, seg_n, width, back_to_back, cos):  # type: ignore[no-untyped-def]
     """Vertex a against segment s: 1 back to back, 2 facing, 0 neither; the foot, the distance."""
@@ -191,8 +239,9 @@ def cone_index(corners, spacing, rate, leaf, margin, cells, h_max):  # type: ign
     C is at most ``U_C = cone at the centre + rate * half the diagonal`` (the cones' minimum is
     rate-Lipschitz), sorted by that bound, at most ``_MAX_LEAVES`` of them.  What a point reads
     is packed in rows (a node's box, least spacing and run of corners; a corner's x, y and
-    spacing; a cell's bound and seed corner; a list entry's bound and leaf): a point touches few
-    cache lines.
+    spacing; a cell's bound and seed corner; a list entry's bound and leaf; a leaf's corners' x,
+    y and spacing, padded to a multiple of four corners with infinite spacing): a point touches
+    few cache lines.
 
     Returns
     -------
@@ -270,7 +319,23 @@ def cone_index(corners, spacing, rate, leaf, margin, cells, h_max):  # type: ign
                     entries[m + t, 1] = found[by_bound[t], 1]
                 m += k
         start[c + 1] = m
-    return tree, (gx0, gy0, size, nx, ny, cell, start, entries[:m].copy())
+    # leaf rows: the x's, y's and spacings of a leaf's corners (three rows of `width`), padded
+    # with corners at the origin whose cone is infinite: a leaf's cones are computed all at
+    # once, four lanes at a time, with no branch per corner (one per corner mispredicted half
+    # the time and cost more than the cones it skipped).
+    width = 1
+    for k in range(first_leaf, nodes):
+        width = max(width, int(node[k, 6]) - int(node[k, 5]))
+    width = (width + 3) // 4 * 4
+    lv = np.zeros((nodes - first_leaf, 3, width))
+    lv[:, 2, :] = np.inf
+    for k in range(first_leaf, nodes):
+        for t in range(int(node[k, 5]), int(node[k, 6])):
+            j = t - int(node[k, 5])
+            lv[k - first_leaf, 0, j] = pts[t, 0]
+            lv[k - first_leaf, 1, j] = pts[t, 1]
+            lv[k - first_leaf, 2, j] = pts[t, 2]
+    return tree, (gx0, gy0, size, nx, ny, cell, start, entries[:m].copy(), lv)
 
 
 @nb.njit(cache=True, inline="always")
@@ -362,6 +427,21 @@ def _least(x0, y0, x1, y1, v, tree, stack):  # type: ignore[no-untyped-def]
     return v, arg
 
 
+@nb.njit(cache=True, inline="always")
+def _leaf_min(lv, j, x, y, rate, tmp):  # type: ignore[no-untyped-def]
+    """The least cone at (x, y) of the corners of leaf row j of ``lv``, every cone computed the
+    same way as by brute force (so the minimum is bit for bit); ``tmp`` is scratch of
+    ``lv.shape[2]`` entries (a loop that stores, which the compiler vectorizes, then the
+    minimum)."""
+    for t in range(tmp.shape[0]):
+        dx, dy = x - lv[j, 0, t], y - lv[j, 1, t]
+        tmp[t] = lv[j, 2, t] + rate * math.sqrt(dx * dx + dy * dy)
+    m = tmp[0]
+    for t in range(1, tmp.shape[0]):
+        m = min(m, tmp[t])
+    return m
+
+
 @nb.njit(cache=True)
 def corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
     """``min(hp, min_c (spacing[c] + rate * sqrt(dx * dx + dy * dy)))`` over all corners c, for
@@ -372,17 +452,22 @@ def corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
     it at once.  Any other starts from the cone of its cell's seed corner and walks its cell's
     leaves in order of their bounds over the cell until one is no lower than the value so far,
     skipping a leaf whose bound at the point is not lower either (a few leaves and corners); a
-    point outside the grid, or in a cell without a list, searches the whole tree instead.  A
+    point outside the grid, or in a cell without a list, searches the whole tree instead.  The
+    leaf that held the last minimum found is read first (a point's neighbour in the batch
+    mostly has the same nearest corners): pruning starts from a near-final value.  Extra cones
+    never change a minimum, so the order of the points changes nothing but the time.  A
     point with a NaN or infinite coordinate, or with ``hp <= min(spacing)`` or NaN, keeps hp.
     """
     tree, grid = index
     rate, slack, first_leaf, node, pts = tree
-    x0, y0, size, nx, ny, cell, start, entries = grid
+    x0, y0, size, nx, ny, cell, start, entries, lv = grid
     r2 = rate * rate
     s_min = node[0, 4]
     n = p.shape[0]
     out = np.empty(n)
     stack = np.empty(64, dtype=np.int64)
+    best = -1
+    tmp = np.empty(lv.shape[2])
     for i in range(n):
         x, y = p[i, 0], p[i, 1]
         v = hp[i]
@@ -397,18 +482,22 @@ def corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
             dx, dy = x - cell[c, 1], y - cell[c, 2]
             v = min(v, cell[c, 3] + rate * math.sqrt(dx * dx + dy * dy))
             if start[c] < start[c + 1]:
+                if best >= 0:  # the leaf of the last minimum found
+                    v = min(v, _leaf_min(lv, best - first_leaf, x, y, rate, tmp))
+                prev = best
                 for q in range(start[c], start[c + 1]):
                     if entries[q, 0] >= v:  # and so are the rest: sorted
                         break
                     k = int(entries[q, 1])
+                    if k == prev:  # read already
+                        continue
                     dx, dy = _gap(node, k, x, y, x, y)
                     if _beyond(r2 * (dx * dx + dy * dy), v, slack, node[k, 4]):
                         continue
-                    for t in range(int(node[k, 5]), int(node[k, 6])):
-                        dx, dy = x - pts[t, 0], y - pts[t, 1]
-                        d2 = dx * dx + dy * dy
-                        if not _beyond(r2 * d2, v, slack, pts[t, 2]):
-                            v = min(v, pts[t, 2] + rate * math.sqrt(d2))
+                    w = _leaf_min(lv, k - first_leaf, x, y, rate, tmp)
+                    if w < v:
+                        v = w
+                        best = k
                 out[i] = v
                 continue
         out[i], _ = _least(x, y, x, y, v, tree, stack)
