@@ -164,3 +164,61 @@ def test_survivors_match_plain_runs(seed: int, keep_rate: float) -> None:
     assert got_closed.tolist() == [c for _, c in expected]
     flat = np.array([p for r, _ in expected for p in r]).reshape(-1, 2)
     assert np.array_equal(pts, flat)
+
+
+def _edt_below(occupied: np.ndarray, cell_h: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """The distance transform's answer, and where the nearest occupied cells tie and disagree."""
+    from scipy import ndimage
+
+    dist, (jj, ii) = ndimage.distance_transform_edt(~occupied, return_indices=True)
+    below = cell_h[jj, ii] < limit
+    # Brute force over the occupied cells: the ones at the nearest distance, all of them.
+    oj, oi = np.nonzero(occupied)
+    yy, xx = np.indices(occupied.shape)
+    d2 = (yy[..., None] - oj) ** 2 + (xx[..., None] - oi) ** 2
+    nearest = d2 == d2.min(axis=-1, keepdims=True)
+    v = cell_h[oj, oi] < limit
+    agree = np.all(np.where(nearest, v, True), axis=-1) | np.all(np.where(nearest, ~v, True), axis=-1)
+    assert np.array_equal(np.rint(dist**2), d2.min(axis=-1))  # the transform is exact
+    return below, agree
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    shape=st.tuples(st.integers(1, 30), st.integers(1, 30)),
+    density=st.sampled_from([0.01, 0.05, 0.3, 0.9]),
+    levels=st.sampled_from([2, 5, 1000]),
+    rings=st.sampled_from([0, 1, 3, 8, 100]),
+)
+def test_nearest_occupied_below_matches_the_distance_transform(
+    seed: int, shape: tuple[int, int], density: float, levels: int, rings: int
+) -> None:
+    # Few distinct h values (levels=2) make many ties, some disagreeing; lattices of occupied
+    # cells make many equidistant ones.
+    rng = np.random.default_rng(seed)
+    occupied = rng.random(shape) < density
+    if seed % 3 == 0:
+        occupied[:: 1 + seed % 4, :: 1 + seed % 5] = True
+    if not occupied.any():
+        occupied[rng.integers(shape[0]), rng.integers(shape[1])] = True
+    cell_h = rng.integers(0, levels, shape).astype(float)
+    limit = levels / 2
+    want, agree = _edt_below(occupied, cell_h, limit)
+    cj, ci = np.nonzero(~occupied | (rng.random(shape) < 0.2))
+    below, settled = kern.nearest_occupied_below(occupied, cell_h, cj.astype(np.int64), ci.astype(np.int64),
+                                                 limit, rings)
+    # Settled exactly where the nearest cells agree and lie within the rings searched ...
+    from scipy import ndimage
+
+    dist = ndimage.distance_transform_edt(~occupied)[cj, ci]
+    assert np.array_equal(settled, agree[cj, ci] & (dist <= rings))
+    # ... and there with the distance transform's answer, whichever of them it picked.
+    assert np.array_equal(below[settled], want[cj, ci][settled])
+
+
+def test_nearest_occupied_below_on_an_empty_grid_settles_nothing() -> None:
+    occupied = np.zeros((4, 5), dtype=bool)
+    below, settled = kern.nearest_occupied_below(occupied, np.zeros((4, 5)), np.array([0, 3]),
+                                                 np.array([0, 4]), 1.0, 10)
+    assert not settled.any() and not below.any()

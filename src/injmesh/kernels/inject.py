@@ -490,3 +490,54 @@ def relay(poly: np.ndarray, pchain: np.ndarray, ds: np.ndarray, closed: np.ndarr
     for c in range(n_chain):
         stays[c] = closed[c] and not collapse[c]
     return out, count, stays
+
+
+@numba.njit(cache=True)
+def nearest_occupied_below(occupied: np.ndarray, cell_h: np.ndarray, cj: np.ndarray, ci: np.ndarray,
+                           limit: float, max_radius: int) -> tuple[np.ndarray, np.ndarray]:
+    """Whether the nearest occupied cell of each cell ``(cj[k], ci[k])`` has ``cell_h`` below
+    ``limit`` (gap filling's test, :func:`injmesh.injection._fill_gaps`).
+
+    Nearest is by Euclidean distance between cell indices, as a distance transform of the
+    occupied cells gives it.  Square rings of cells are searched outwards: once the nearest
+    occupied cell found is at squared distance ``D <= r^2`` after ring r, every cell beyond
+    is farther, and every cell at distance ``D`` has been seen.  Where several occupied cells
+    are nearest, the answer stands only if they all agree (a distance transform picks one of
+    them by its own order of work).
+
+    Returns
+    -------
+    below, settled : (k,) bool arrays
+        ``below`` holds only where ``settled``: not where no occupied cell lies within
+        ``max_radius`` rings, nor where the nearest occupied cells disagree.
+    """
+    ny, nx = occupied.shape
+    k = cj.shape[0]
+    below = np.zeros(k, dtype=np.bool_)
+    settled = np.zeros(k, dtype=np.bool_)
+    for t in range(k):
+        j0, i0 = cj[t], ci[t]
+        best = -1
+        verdict = False
+        tied = False
+        for r in range(max_radius + 1):
+            for j in range(max(j0 - r, 0), min(j0 + r, ny - 1) + 1):
+                dj = j - j0
+                whole_row = dj == -r or dj == r
+                i = max(i0 - r, 0)
+                while i <= min(i0 + r, nx - 1):
+                    if occupied[j, i]:
+                        di = i - i0
+                        d = dj * dj + di * di
+                        v = cell_h[j, i] < limit
+                        if best < 0 or d < best:
+                            best, verdict, tied = d, v, False
+                        elif d == best and v != verdict:
+                            tied = True
+                    # Inner rows of the ring: only its two ends (a cell seen again changes nothing).
+                    i = i + 1 if whole_row or i >= i0 + r else i0 + r
+            if 0 <= best <= r * r:
+                settled[t] = not tied
+                below[t] = verdict
+                break
+    return below, settled
