@@ -541,3 +541,65 @@ def nearest_occupied_below(occupied: np.ndarray, cell_h: np.ndarray, cj: np.ndar
                 below[t] = verdict
                 break
     return below, settled
+
+
+@numba.njit(cache=True)
+def fill_census(pts: np.ndarray, hs: np.ndarray, x0: float, y0: float, s: float, nx: int, ny: int,
+                outside: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
+    """One level of gap filling's cells (:func:`injmesh.injection._fill_gaps`), in two passes.
+
+    Cell ``(j, i)`` of side s holds the points with ``floor((x - x0) / s) == i`` and
+    ``floor((y - y0) / s) == j``.  A cell is *deep* when it and its eight neighbours hold no
+    point (cells beyond the grid hold none); the cells to offer are the empty ones, not
+    ``outside``, next to (or being) a deep one.
+
+    Returns
+    -------
+    occupied : (ny, nx) bool array
+    cells : (ny, nx) bool array
+        The cells to offer.
+    cell_h : (ny, nx) float array
+        ``hs`` of the last point in each occupied cell, 0 elsewhere.
+    n_deep : int
+        How many cells are deep.
+    n_near : int
+        How many cells to offer are not deep (touch an occupied cell).
+    """
+    # One cell of margin all round; 3 x 3 neighbourhoods as a pass along rows, then columns.
+    occ = np.zeros((ny + 2, nx + 2), dtype=np.uint8)
+    cell_h = np.zeros((ny, nx))
+    for k in range(pts.shape[0]):
+        fx = math.floor((pts[k, 0] - x0) / s)
+        fy = math.floor((pts[k, 1] - y0) / s)
+        if 0.0 <= fx < nx and 0.0 <= fy < ny:
+            occ[int(fy) + 1, int(fx) + 1] = 1
+            cell_h[int(fy), int(fx)] = hs[k]
+    rows = np.zeros((ny + 2, nx), dtype=np.uint8)
+    for j in range(ny + 2):
+        for i in range(nx):
+            rows[j, i] = occ[j, i] | occ[j, i + 1] | occ[j, i + 2]
+    deep = np.zeros((ny + 2, nx + 2), dtype=np.uint8)
+    n_deep = 0
+    for j in range(ny):
+        for i in range(nx):
+            e = 1 - (rows[j, i] | rows[j + 1, i] | rows[j + 2, i])
+            deep[j + 1, i + 1] = e
+            n_deep += e
+    occupied = np.zeros((ny, nx), dtype=np.bool_)
+    for j in range(ny):
+        for i in range(nx):
+            occupied[j, i] = occ[j + 1, i + 1] != 0
+    cells = np.zeros((ny, nx), dtype=np.bool_)
+    if n_deep == 0:
+        return occupied, cells, cell_h, 0, 0
+    for j in range(ny + 2):
+        for i in range(nx):
+            rows[j, i] = deep[j, i] | deep[j, i + 1] | deep[j, i + 2]
+    n_near = 0
+    for j in range(ny):
+        for i in range(nx):
+            c = (rows[j, i] | rows[j + 1, i] | rows[j + 2, i]) & (1 - occ[j + 1, i + 1])
+            if c and not outside[j, i]:
+                cells[j, i] = True
+                n_near += 1 - deep[j + 1, i + 1]
+    return occupied, cells, cell_h, n_deep, n_near
