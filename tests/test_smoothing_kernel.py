@@ -109,6 +109,27 @@ def test_rings_grow_by_one_edge_per_step() -> None:
     assert np.array_equal(two, ref)
 
 
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(2, 12), st.integers(40, 600), st.lists(st.integers(0, 10**6), max_size=60),
+       st.booleans())
+def test_one_ring_as_indices_is_the_ring_mask(k: int, n: int, raw: list[int], padded: bool) -> None:
+    """``ring_one`` lists what ``rings(..., 1)`` marks, sorted, whatever the number of seeds
+    (its two ways of listing: a sort of few, a scan of many), including rows with free slots
+    and repeated seeds, and leaves its scratch mask zeroed."""
+    from injmesh.kernels.smooth import pad_rows, ring_one
+
+    p, tri = _mesh(k, n)
+    indptr, adj, eid, _ = adjacency(len(p), tri)
+    if padded:
+        indptr, adj, eid = pad_rows(indptr, adj, eid, 3)
+    seeds = np.array([r % len(p) for r in raw], dtype=np.int64)
+    mark = np.zeros(len(p), dtype=np.uint8)
+    got = ring_one(indptr, adj, seeds, mark)
+    assert np.array_equal(got, np.flatnonzero(rings(indptr, adj, seeds, 1)))
+    assert not mark.any()
+
+
 _RUN = """
 import numpy as np, hashlib
 from injmesh import Circle, Rectangle, generate
@@ -459,6 +480,40 @@ def test_quality_pass_raises_stars_and_keeps_the_mesh_valid(seed: int) -> None:
     assert after.mean() > before.mean()
 
 
+
+def test_quality_pass_moves_each_node_a_bounded_number_of_times(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Neighbours can take turns raising their own star and lowering the other's for ever: the
+    pass moves a node at most OPTIMIZE_MOVES times, so it ends on its own long before a large
+    sweep cap, and still leaves the worst triangle no worse."""
+    from injmesh import generate
+    from injmesh import smoothing as S
+    from injmesh.kernels import smooth as K
+    from injmesh.quality import signed_areas, triangle_quality
+
+    square = Rectangle((0, 0), (1, 1))
+    mesh = generate(square, 0.05)
+    p, t = mesh.points.copy(), mesh.triangles
+    on_boundary = np.abs(square.sdf(p)) < 1e-12
+    rng = np.random.default_rng(1)
+    jitter = rng.normal(0.0, 0.006, p.shape)
+    jitter[on_boundary] = 0.0
+    q_try = p + jitter
+    assert (signed_areas(q_try, t) > 0).all()
+    moved: list[np.ndarray] = []
+    restar = K.restar
+
+    def spy(p, tri, start, by_node, q, star, nodes):  # type: ignore[no-untyped-def]
+        moved.append(np.array(nodes))
+        return restar(p, tri, start, by_node, q, star, nodes)
+
+    monkeypatch.setattr(K, "restar", spy)
+    monkeypatch.setattr(S, "OPTIMIZE_SWEEPS", 1000)
+    out = S._optimize(square, q_try, t, ~on_boundary, on_boundary, mesh.boundary_edges)
+    counts = np.bincount(np.concatenate(moved), minlength=len(p))
+    assert 0 < counts.max() <= S.OPTIMIZE_MOVES
+    assert len(moved) < 1000
+    assert triangle_quality(out, t).min() >= triangle_quality(q_try, t).min()
+
 def test_repair_keeps_each_part_at_its_best_round() -> None:
     """Bad triangles in two clusters far apart make a sub-mesh of two parts that share no
     node: each part keeps its own best round, so neither ends worse than it started (a single
@@ -500,3 +555,60 @@ def test_repair_keeps_each_part_at_its_best_round() -> None:
         after = q1[np.hypot(*(c1 - centre).T) < 0.2].min()
         assert after >= before - 1e-12
     assert q1.min() > q0.min()
+
+
+def test_repair_leaves_a_part_pinned_by_a_fixed_triangle(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A part of the repair's sub-mesh whose worst triangle has three fixed nodes keeps that
+    q_min whatever a round does, so it gets no edits at all (its rounds could never be kept); a
+    second part far away, pinned by nothing, is repaired as before."""
+    from injmesh import generate
+    from injmesh import smoothing as S
+    from injmesh.quality import signed_areas, triangle_quality
+
+    square = Rectangle((0, 0), (1, 1))
+    mesh = generate(square, 0.02)
+    p = mesh.points.copy()
+    rng = np.random.default_rng(5)
+    for centre in ((0.25, 0.25), (0.75, 0.7)):  # jitter two clusters far apart
+        near = (np.hypot(*(p - centre).T) < 0.1) & (np.abs(square.sdf(p)) > 1e-12)
+        p[near] += rng.normal(0.0, 0.003, (int(near.sum()), 2))
+    t = delaunay(p).astype(np.intp)  # the square is convex: every Delaunay triangle is inside
+    q = triangle_quality(p, t)
+    centres = p[t].mean(axis=1)
+    first = np.hypot(*(centres - (0.25, 0.25)).T) < 0.2
+    worst = np.flatnonzero(first)[np.argmin(q[first])]
+    # Fixed: the boundary and the three nodes of the first cluster's worst triangle.
+    fixed = np.abs(square.sdf(p)) < 1e-12
+    fixed[t[worst]] = True
+    order = np.concatenate([np.flatnonzero(fixed), np.flatnonzero(~fixed)])
+    inv = np.empty_like(order)
+    inv[order] = np.arange(len(order))
+    p, t = p[order], inv[t]
+    n_fixed = int(fixed.sum())
+    near_first = np.hypot(*(p[t].mean(axis=1) - (0.25, 0.25)).T) < 0.2
+    others = near_first & (t.max(axis=1) >= n_fixed)
+    q = triangle_quality(p, t)
+    pinned_q = q[near_first & (t.max(axis=1) < n_fixed)].min()
+    assert pinned_q < q[others].min()
+
+    edited: list[np.ndarray] = []
+    choose = S._choose_repairs
+
+    def spy(relax, p, tri, bad):  # type: ignore[no-untyped-def]
+        edited.append(p[tri[bad]].mean(axis=1))
+        return choose(relax, p, tri, bad)
+
+    monkeypatch.setattr(S, "_choose_repairs", spy)
+    relax = S._Relaxation(square, lambda x: np.full(len(x), 0.02), p, n_fixed,
+                          np.zeros((0, 3), dtype=np.intp), np.zeros((0, 2), dtype=np.intp), None,
+                          1000, tri=t)
+    out_p, out_t, _, _, _ = S._repair(relax, np.arange(len(p)))
+    assert edited, "the unpinned part was not repaired"
+    for at in edited:  # no bad triangle of the pinned part was offered for an edit
+        assert (np.hypot(*(at - (0.25, 0.25)).T) > 0.2).all()
+    q1 = triangle_quality(out_p, out_t)
+    c1 = out_p[out_t].mean(axis=1)
+    assert q1[np.hypot(*(c1 - (0.25, 0.25)).T) < 0.2].min() == pinned_q
+    assert q1[np.hypot(*(c1 - (0.75, 0.7)).T) < 0.2].min() > q[
+        np.hypot(*(p[t].mean(axis=1) - (0.75, 0.7)).T) < 0.2].min()
+    assert (signed_areas(out_p, out_t) > 0).all()

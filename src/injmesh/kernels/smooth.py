@@ -304,6 +304,49 @@ def advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near, tol): 
 
 
 @njit(cache=True)
+def ring_one(indptr, adj, seeds, mark):  # type: ignore[no-untyped-def]
+    """The nodes within one edge of ``seeds`` (the seeds too), sorted: ``rings(..., 1)`` as
+    indices.
+
+    The cost follows the seeds' rows, not the mesh: ``mark`` is a zeroed uint8 array over the
+    nodes that the call leaves zeroed, so a caller asking at every connectivity update
+    allocates nothing of the mesh's size (``rings`` allocates three such arrays, and its mask
+    must be scanned).
+    """
+    bound = seeds.shape[0]
+    for s in seeds:
+        bound += indptr[s + 1] - indptr[s]
+    out = np.empty(bound, dtype=np.int64)
+    m = 0
+    for s in seeds:
+        if mark[s] == 0:
+            mark[s] = 1
+            out[m] = s
+            m += 1
+        for e in range(indptr[s], indptr[s + 1]):
+            u = adj[e]
+            if u >= 0 and mark[u] == 0:
+                mark[u] = 1
+                out[m] = u
+                m += 1
+    n = mark.shape[0]
+    if m > n // 32:
+        # Many: a scan of the marks lists them in order for less than a sort.
+        k = 0
+        for v in range(n):
+            if mark[v]:
+                mark[v] = 0
+                out[k] = v
+                k += 1
+        return out[:m].copy()
+    for a in range(m):
+        mark[out[a]] = 0
+    res = out[:m].copy()
+    res.sort()
+    return res
+
+
+@njit(cache=True)
 def rings(indptr, adj, seeds, k):  # type: ignore[no-untyped-def]
     """Mask of the nodes within ``k`` edges of ``seeds`` (breadth-first over the CSR rows)."""
     n = indptr.shape[0] - 1
