@@ -178,3 +178,33 @@ def test_the_fill_skips_the_exterior_without_changing_what_it_offers() -> None:
         placed.append(_fill_gaps(dom, h, grid))
     assert len(placed[0]) > 100
     assert np.array_equal(placed[0], placed[1])
+
+
+@pytest.mark.parametrize("rings", [(0, 0), (3, 8)])
+def test_the_fill_decides_the_same_with_or_without_the_distance_transform(
+        monkeypatch: pytest.MonkeyPatch, rings: tuple[int, int]) -> None:
+    """The fill asks each empty cell's nearest node by a ring search where the cells are near
+    nodes and few are left over (else the whole level's distance transform): same nodes either
+    way, on a fill that places nodes (a box whose fronts died at once) and one that places none
+    (a graded disc the fronts filled, whose box corners are far from every node)."""
+    import injmesh.injection as inj
+    from injmesh.injection import _fill_gaps, _Proximity
+
+    graded = as_size_function(lambda p: 0.01 * (1.0 + 9.0 * np.hypot(p[:, 0], p[:, 1])))
+    cases = [(Rectangle((0, 0), (2, 1)), as_size_function(lambda p: 0.02 + 0.05 * p[:, 0]), False),
+             (Circle((0, 0), 1), graded, True)]
+    for dom, size, inject in cases:
+        h = size.restricted(dom)
+        b = mesh_boundary(dom, h, np.empty((0, 2)), max_nodes=BUDGET)
+        nodes = b.points
+        if inject:
+            nodes = np.concatenate([nodes, inject_nodes(dom, h, b, b.points, max_nodes=BUDGET)])
+        out = []
+        for search in (True, False):
+            monkeypatch.setattr(inj, "FILL_SEARCH_CELLS", 0 if search else 1 << 62)
+            monkeypatch.setattr(inj, "FILL_NEAR_SHARE", -1.0)
+            monkeypatch.setattr(inj, "FILL_RINGS", rings)
+            grid = _Proximity(dom, b, nodes, h(nodes), float(h(b.points).min()))
+            out.append(_fill_gaps(dom, h, grid))
+        assert np.array_equal(out[0], out[1])
+        assert (len(out[0]) > 100) != inject

@@ -164,3 +164,110 @@ def test_survivors_match_plain_runs(seed: int, keep_rate: float) -> None:
     assert got_closed.tolist() == [c for _, c in expected]
     flat = np.array([p for r, _ in expected for p in r]).reshape(-1, 2)
     assert np.array_equal(pts, flat)
+
+
+def _edt_below(occupied: np.ndarray, cell_h: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """The distance transform's answer, and where the nearest occupied cells tie and disagree."""
+    from scipy import ndimage
+
+    dist, (jj, ii) = ndimage.distance_transform_edt(~occupied, return_indices=True)
+    below = cell_h[jj, ii] < limit
+    # Brute force over the occupied cells: the ones at the nearest distance, all of them.
+    oj, oi = np.nonzero(occupied)
+    yy, xx = np.indices(occupied.shape)
+    d2 = (yy[..., None] - oj) ** 2 + (xx[..., None] - oi) ** 2
+    nearest = d2 == d2.min(axis=-1, keepdims=True)
+    v = cell_h[oj, oi] < limit
+    agree = np.all(np.where(nearest, v, True), axis=-1) | np.all(np.where(nearest, ~v, True), axis=-1)
+    assert np.array_equal(np.rint(dist**2), d2.min(axis=-1))  # the transform is exact
+    return below, agree
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    shape=st.tuples(st.integers(1, 30), st.integers(1, 30)),
+    density=st.sampled_from([0.01, 0.05, 0.3, 0.9]),
+    levels=st.sampled_from([2, 5, 1000]),
+    rings=st.sampled_from([0, 1, 3, 8, 100]),
+)
+def test_nearest_occupied_below_matches_the_distance_transform(
+    seed: int, shape: tuple[int, int], density: float, levels: int, rings: int
+) -> None:
+    # Few distinct h values (levels=2) make many ties, some disagreeing; lattices of occupied
+    # cells make many equidistant ones.
+    rng = np.random.default_rng(seed)
+    occupied = rng.random(shape) < density
+    if seed % 3 == 0:
+        occupied[:: 1 + seed % 4, :: 1 + seed % 5] = True
+    if not occupied.any():
+        occupied[rng.integers(shape[0]), rng.integers(shape[1])] = True
+    cell_h = rng.integers(0, levels, shape).astype(float)
+    limit = levels / 2
+    want, agree = _edt_below(occupied, cell_h, limit)
+    cj, ci = np.nonzero(~occupied | (rng.random(shape) < 0.2))
+    below, settled = kern.nearest_occupied_below(occupied, cell_h, cj.astype(np.int64), ci.astype(np.int64),
+                                                 limit, rings)
+    # Settled exactly where the nearest cells agree and lie within the rings searched ...
+    from scipy import ndimage
+
+    dist = ndimage.distance_transform_edt(~occupied)[cj, ci]
+    assert np.array_equal(settled, agree[cj, ci] & (dist <= rings))
+    # ... and there with the distance transform's answer, whichever of them it picked.
+    assert np.array_equal(below[settled], want[cj, ci][settled])
+
+
+def test_nearest_occupied_below_on_an_empty_grid_settles_nothing() -> None:
+    occupied = np.zeros((4, 5), dtype=bool)
+    below, settled = kern.nearest_occupied_below(occupied, np.zeros((4, 5)), np.array([0, 3]),
+                                                 np.array([0, 4]), 1.0, 10)
+    assert not settled.any() and not below.any()
+
+
+def _census_numpy(pts, hs, x0, y0, s, nx, ny, outside):
+    """The NumPy formulation fill_census replaced: shifted slices of a grid with a margin."""
+    ix = np.floor((pts[:, 0] - x0) / s).astype(np.int64)
+    iy = np.floor((pts[:, 1] - y0) / s).astype(np.int64)
+    ok = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
+    occupied = np.zeros((ny + 2, nx + 2), dtype=bool)
+    occupied[iy[ok] + 1, ix[ok] + 1] = True
+    near = np.zeros_like(occupied)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            near[1:-1, 1:-1] |= occupied[1 + dy: ny + 1 + dy, 1 + dx: nx + 1 + dx]
+    deep = ~near[1:-1, 1:-1]
+    grown = np.zeros((ny + 2, nx + 2), dtype=bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            grown[1 + dy: ny + 1 + dy, 1 + dx: nx + 1 + dx] |= deep
+    cells = grown[1:-1, 1:-1] & ~occupied[1:-1, 1:-1] & ~outside
+    cell_h = np.zeros((ny, nx))
+    cell_h[iy[ok], ix[ok]] = hs[ok]
+    return occupied[1:-1, 1:-1], cells, cell_h, int(deep.sum()), int((cells & ~deep).sum())
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 400),
+       shape=st.tuples(st.integers(1, 40), st.integers(1, 40)), on_lines=st.booleans())
+def test_fill_census_matches_the_numpy_passes(seed: int, n: int, shape: tuple[int, int],
+                                              on_lines: bool) -> None:
+    """Against the 3 x 3 passes over shifted slices, with points outside the grid, on cell
+    sides (``on_lines``: coordinates on multiples of s), several in one cell, and cells
+    already known to be outside."""
+    rng = np.random.default_rng(seed)
+    ny, nx = shape
+    s, x0, y0 = 0.25, -1.0, 2.0
+    u = rng.random((n, 2)) * [nx + 2, ny + 2] - 1.0
+    if on_lines:
+        u = np.round(u)
+    pts = np.ascontiguousarray([x0, y0] + s * u)
+    hs = rng.random(n)
+    outside = rng.random((ny, nx)) < 0.2
+    got = kern.fill_census(pts, hs, x0, y0, s, nx, ny, outside)
+    want = _census_numpy(pts, hs, x0, y0, s, nx, ny, outside)
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[2], want[2])
+    assert got[3] == want[3]
+    if want[3]:  # without a deep cell nothing is offered (the caller stops there)
+        assert np.array_equal(got[1], want[1]) and got[4] == want[4]
+    else:
+        assert not got[1].any()

@@ -397,3 +397,34 @@ def test_inside_polygon_by_strips_matches_the_plain_even_odd_loop(shape: str) ->
     assert np.array_equal(got, _even_odd(q, a, b))
     if shape != "flat":
         assert got.any() and not got.all()
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(3, 300),
+       kind=st.sampled_from(["random", "lattice", "dups"]))
+def test_delaunay_remembers_the_neighbours_of_its_triangles(seed: int, n: int, kind: str) -> None:
+    """The neighbour table delaunay() keeps for classify_by_walls is the one neighbours()
+    finds, on random points, cocircular lattices and points with exact duplicates; triangles
+    changed in place, or another array, are not handed it."""
+    from injmesh.kernels import mesh
+    from injmesh.triangulation import _LAST_NEIGHBOURS
+
+    rng = np.random.default_rng(seed)
+    if kind == "lattice":
+        k = max(2, int(np.sqrt(n)))
+        p = np.stack(np.meshgrid(np.arange(k), np.arange(k)), axis=-1).reshape(-1, 2).astype(float)
+    else:
+        p = rng.random((n, 2))
+        if kind == "dups":
+            p = np.concatenate([p, p[rng.integers(0, n, n // 3 + 1)]])
+    tri = delaunay(p)
+    t64 = np.array(tri, dtype=np.int64)  # a copy: equal triangles, not the array returned
+    remembered = _LAST_NEIGHBOURS.recall(t64)
+    assert remembered is not None
+    assert np.array_equal(remembered, mesh.neighbours(t64, len(p)))
+    assert _LAST_NEIGHBOURS.recall(t64[::-1].copy()) is None or len(t64) == 1
+    if len(tri) > 1:
+        tri[[0, 1]] = tri[[1, 0]]
+        assert _LAST_NEIGHBOURS.recall(np.ascontiguousarray(tri, dtype=np.int64)) is None
+    del tri
+    assert _LAST_NEIGHBOURS.recall(t64) is None  # forgotten with the array it was kept for

@@ -281,3 +281,67 @@ def test_sharp_corner_gets_the_best_triangle_its_angle_allows(degrees):
     assert q[tip][0] == pytest.approx(_best_q(degrees), rel=0.02)
     # The strip next to the tip is the next worst: within 15 % of the tip here.
     assert q.min() >= 0.85 * _best_q(degrees)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(2, 400), eps=st.sampled_from([1e-9, 0.05, 0.3]),
+       decimals=st.integers(0, 2), crowd=st.booleans())
+def test_duplicate_search_binned_or_sorted_gives_the_same_pairs_in_the_same_order(
+        seed, n, eps, decimals, crowd):
+    """The binned search (spread-out nodes) and the sorted scan (its fallback for nodes crowded
+    into a few bins) list the same pairs, oriented and ordered alike."""
+    import injmesh.validate as val
+
+    rng = np.random.default_rng(seed)
+    q = np.round(rng.random((n, 2)) * rng.integers(1, 20), decimals)
+    q[rng.integers(0, n, 5)] += rng.normal(0.0, eps / 2, (5, 2))
+    if crowd and n > 3:  # most nodes in one tiny cluster, a few far away
+        q[: n - 3] = q[0] + rng.normal(0.0, eps, (n - 3, 2))
+    q[rng.integers(0, n, 5), 0] += 1e-16 * rng.integers(-2, 3, 5)
+    out = []
+    for work in (10**15, -1):
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(val, "DUPLICATE_WORK", work)
+            out.append(val._duplicates(q, eps))
+    assert np.array_equal(out[0], out[1])
+
+
+def _census(tri: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every distinct edge (i < j, sorted) with its counts each way, by np.unique."""
+    u = tri.ravel()
+    v = tri[:, [1, 2, 0]].ravel()
+    edges, inv = np.unique(np.stack([np.minimum(u, v), np.maximum(u, v)], axis=1), axis=0,
+                           return_inverse=True)
+    inv = inv.ravel()
+    fwd = np.bincount(inv, weights=(u <= v), minlength=len(edges)).astype(np.int64)
+    bwd = np.bincount(inv, weights=(u > v), minlength=len(edges)).astype(np.int64)
+    return edges, fwd, bwd
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(3, 200), faults=st.integers(0, 6))
+def test_unusual_edges_are_those_not_run_along_once_each_way(seed, n, faults):
+    """Against a census of every edge by np.unique, on Delaunay meshes with triangles repeated,
+    reversed, dropped and with a corner repeated."""
+    from injmesh.kernels.mesh import unusual_edges
+    from injmesh.triangulation import delaunay
+
+    rng = np.random.default_rng(seed)
+    tri = delaunay(rng.random((n, 2))).astype(np.int64)
+    for _ in range(faults):
+        k = int(rng.integers(0, len(tri)))
+        kind = int(rng.integers(0, 4))
+        if kind == 0:
+            tri = np.concatenate([tri, tri[k:k + 1]])
+        elif kind == 1:
+            tri[k] = tri[k, ::-1]
+        elif kind == 2 and len(tri) > 1:
+            tri = np.delete(tri, k, axis=0)
+        else:
+            tri[k, 2] = tri[k, 0]
+    edges, fwd, bwd = _census(tri)
+    odd = ~((fwd == 1) & (bwd == 1))
+    got = unusual_edges(np.ascontiguousarray(tri), n)
+    assert np.array_equal(got[0], edges[odd])
+    assert np.array_equal(got[1], fwd[odd])
+    assert np.array_equal(got[2], bwd[odd])

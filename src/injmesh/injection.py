@@ -199,6 +199,8 @@ def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity) -> FloatArray:
     cell's diagonal puts its whole cell outside, and so the four cells of the next level in
     it: those are never offered again.
     """
+    from .kernels.inject import fill_census
+
     x0, y0, x1, y1 = (float(v) for v in domain.bbox)
     s = grid.h_max
     out: list[FloatArray] = []
@@ -218,61 +220,138 @@ def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity) -> FloatArray:
             py = np.minimum(np.arange(ny) // 2, before.shape[0] - 1)
             px = np.minimum(np.arange(nx) // 2, before.shape[1] - 1)
             outside = before[np.ix_(py, px)]
-        pts = grid.pts[: grid.n]
-        ix = np.floor((pts[:, 0] - x0) / s).astype(np.int64)
-        iy = np.floor((pts[:, 1] - y0) / s).astype(np.int64)
-        ok = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
-        occupied = np.zeros((ny + 2, nx + 2), dtype=bool)  # one cell of margin all round
-        occupied[iy[ok] + 1, ix[ok] + 1] = True
-        near = np.zeros_like(occupied)
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                near[1:-1, 1:-1] |= occupied[1 + dy: ny + 1 + dy, 1 + dx: nx + 1 + dx]
-        deep = ~near[1:-1, 1:-1]
-        if deep.any():
-            grown = np.zeros((ny + 2, nx + 2), dtype=bool)
-            for dy in (-1, 0, 1):
-                for dx in (-1, 0, 1):
-                    grown[1 + dy: ny + 1 + dy, 1 + dx: nx + 1 + dx] |= deep
-            cells = grown[1:-1, 1:-1] & ~occupied[1:-1, 1:-1] & ~outside
-            if not first:
+        # Empty cells next to deep-empty ones (compiled: 18 passes over the grid in NumPy).
+        occupied, cells, cell_h, n_deep, n_near = fill_census(
+            grid.pts[: grid.n], grid.hs[: grid.n], x0, y0, s, nx, ny, np.ascontiguousarray(outside))
+        if n_deep:
+            if not first and cells.any():
                 # Only where the nearest node's h suits this spacing: a coarser level has
                 # already offered its lattice where h is larger (most of a fine level's empty
                 # cells, between nodes far apart), and sdf and h need not be asked there.
-                from scipy import ndimage
-
-                cell_h = np.zeros((ny, nx))
-                cell_h[iy[ok], ix[ok]] = grid.hs[: grid.n][ok]
-                _, (jj, ii) = ndimage.distance_transform_edt(~occupied[1:-1, 1:-1], return_indices=True)
-                cells &= cell_h[jj, ii] < FILL_NEAR * FILL_H * s
-            # The equilateral lattice of spacing s, rows sqrt(3)/2 s apart, odd rows shifted:
-            # point i of row r is in cell column i (i < nx), row floor((y_r - y0) / s); the
-            # candidates are listed row by row, in x order.
-            rows = np.arange(int((y1 - y0) / (HEIGHT * s)) + 1)
-            ys = y0 + rows * HEIGHT * s
-            cy = np.floor((ys - y0) / s).astype(np.int64)
-            rows = rows[cy < ny]
-            r, i = np.nonzero(cells[cy[rows]])
-            r = rows[r]
-            q = np.stack([x0 + (i + 0.5 * (r % 2)) * s, ys[r]], axis=1)
+                limit = FILL_NEAR * FILL_H * s
+                if cells.size >= FILL_SEARCH_CELLS and n_near > FILL_NEAR_SHARE * np.count_nonzero(cells):
+                    below, unsettled = _near_small_h(occupied, cell_h, cells, limit)
+                else:
+                    below, unsettled = np.zeros_like(cells), cells.copy()
+                if np.count_nonzero(unsettled) * FILL_FEW > unsettled.size:
+                    # Many: the distance transform costs less than their sdf (a detailed
+                    # outline's sdf can cost ~1 us per point, the transform ~0.1 us per cell).
+                    below |= _near_small_h_edt(occupied, cell_h, unsettled, limit)
+                    unsettled[:] = False
+                if exact and unsettled.any():
+                    # Cells far from every node are mostly far outside the domain (the corners
+                    # of a disc's box): a cell whose centre is farther outside than its
+                    # diagonal lies wholly outside, offers nothing and never will.
+                    uj, ui = np.nonzero(unsettled)
+                    centre = np.stack([x0 + (ui + 0.5) * s, y0 + (uj + 0.5) * s], axis=1)
+                    gone = domain.sdf(centre) > s
+                    outside[uj[gone], ui[gone]] = True
+                    unsettled[uj[gone], ui[gone]] = False
+                    cells &= ~outside
+                if unsettled.any():
+                    # The others matter only if one of their lattice points would be a node
+                    # of this level (inside, h in its range); then, and only then, the whole
+                    # level's distance transform decides.
+                    q, _ = _lattice(unsettled, x0, y0, y1, s)
+                    if _suited(domain, h, q, s, first)[0].any():
+                        below |= _near_small_h_edt(occupied, cell_h, unsettled, limit)
+                cells &= below
+            q, (cy, i) = _lattice(cells, x0, y0, y1, s)
             if len(q):
-                d = domain.sdf(q)
-                inside = d < 0
+                inside, hq, d = _suited(domain, h, q, s, first)
                 if exact:
                     far = d > math.sqrt(2.0) * s
-                    outside[cy[r[far]], i[far]] = True
-                hq = np.ones(len(q))
-                if inside.any():
-                    hq[inside] = h(q[inside])
-                # This level's spacing suits h in [FILL_H s, 2 FILL_H s); the first level also
-                # takes any larger h (h there is above every h admitted so far).
-                inside &= (hq >= FILL_H * s) & ((hq < 2.0 * FILL_H * s) | first)
+                    outside[cy[far], i[far]] = True
                 keep = grid.admit(q, hq, inside)
                 if keep.any():
                     out.append(q[keep])
         before = outside
         s *= 0.5
     return np.concatenate(out) if out else np.empty((0, 2))
+
+
+def _lattice(cells: NDArray[np.bool_], x0: float, y0: float, y1: float,
+             s: float) -> tuple[FloatArray, tuple[NDArray[np.intp], NDArray[np.intp]]]:
+    """The equilateral lattice of spacing s over the flagged cells (origin ``(x0, y0)``).
+
+    Rows sqrt(3)/2 s apart, odd rows shifted by s/2: point i of row r is in cell column i, row
+    floor((y_r - y0) / s).  Listed row by row, in x order.  Returns the points ``(m, 2)`` and
+    the row and column of each one's cell.
+    """
+    ny = cells.shape[0]
+    rows = np.arange(int((y1 - y0) / (HEIGHT * s)) + 1)
+    ys = y0 + rows * HEIGHT * s
+    cy = np.floor((ys - y0) / s).astype(np.int64)
+    rows = rows[cy < ny]
+    r, i = np.nonzero(cells[cy[rows]])
+    r = rows[r]
+    return np.stack([x0 + (i + 0.5 * (r % 2)) * s, ys[r]], axis=1), (cy[r], i)
+
+
+def _suited(domain: Domain, h: SizeFn, q: FloatArray, s: float,
+            first: bool) -> tuple[BoolArray, FloatArray, FloatArray]:
+    """Which lattice points of spacing s may be nodes (inside, h suits s), their h (1 where
+    not inside) and their signed distance."""
+    d = domain.sdf(q)
+    inside = d < 0
+    hq = np.ones(len(q))
+    if inside.any():
+        hq[inside] = h(q[inside])
+    # This level's spacing suits h in [FILL_H s, 2 FILL_H s); the first level also takes any
+    # larger h (h there is above every h admitted so far).
+    inside &= (hq >= FILL_H * s) & ((hq < 2.0 * FILL_H * s) | first)
+    return inside, hq, d
+
+
+#: Gap filling's search for each empty cell's nearest occupied cell: on levels of at least
+#: FILL_SEARCH_CELLS cells (on smaller ones the transform costs a few ms), when more than
+#: FILL_NEAR_SHARE of the cells to decide touch an occupied cell (else they are mostly far from
+#: every node, and a distance transform of the whole level is cheaper), rings of cells up to
+#: FILL_RINGS[0] around each, then up to FILL_RINGS[1] if at most 1 / FILL_FEW of the level's
+#: cells are left.  A ring search visits cells about ten times faster than the transform works
+#: per cell.
+FILL_RINGS = (3, 8)
+FILL_SEARCH_CELLS = 1 << 19
+FILL_NEAR_SHARE = 0.2
+FILL_FEW = 256
+
+
+def _near_small_h(occupied: NDArray[np.bool_], cell_h: FloatArray, cells: NDArray[np.bool_],
+                  limit: float) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """Which of the ``cells`` have a nearest occupied cell whose ``cell_h`` is below ``limit``.
+
+    Most cells are settled by a search of a few rings of cells round each
+    (:func:`injmesh.kernels.inject.nearest_occupied_below`); the others -- far from every
+    node, or nearest to several that disagree -- are returned as unsettled, for the caller to
+    drop if they lie outside the domain, or to pass to :func:`_near_small_h_edt`.
+
+    Returns
+    -------
+    below, unsettled : (ny, nx) bool arrays
+    """
+    from .kernels.inject import nearest_occupied_below
+
+    occ = np.ascontiguousarray(occupied)
+    out = np.zeros_like(cells)
+    unsettled = cells.copy()
+    for rings in FILL_RINGS:
+        cj, ci = np.nonzero(unsettled)
+        below, settled = nearest_occupied_below(occ, cell_h, cj.astype(np.int64), ci.astype(np.int64),
+                                                float(limit), rings)
+        out[cj, ci] = below & settled
+        unsettled[cj[settled], ci[settled]] = False
+        if (len(cj) - int(np.count_nonzero(settled))) * FILL_FEW > cells.size:
+            break
+    return out, unsettled
+
+
+def _near_small_h_edt(occupied: NDArray[np.bool_], cell_h: FloatArray, cells: NDArray[np.bool_],
+                      limit: float) -> NDArray[np.bool_]:
+    """:func:`_near_small_h` by the Euclidean distance transform of the whole level."""
+    from scipy import ndimage
+
+    _, (jj, ii) = ndimage.distance_transform_edt(~occupied, return_indices=True)
+    return cells & (cell_h[jj, ii] < limit)
 
 
 def _layer_cap(domain: Domain, h_min: float) -> int:

@@ -8,6 +8,7 @@ triangulation); the other functions here run compiled kernels over plain arrays
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable
 
 import numpy as np
@@ -58,16 +59,56 @@ def delaunay(points: FloatArray) -> IntArray:
         live = LiveTriangulation(p)
     except DelaunayError as exc:
         raise TriangulationError(f"Delaunay triangulation failed: {exc}") from None
-    tri = live.triangles.astype(np.intp)
+    tri32, nbr = live.compact()
+    tri = tri32.astype(np.intp)
     dup = live.duplicates
     dropped = np.flatnonzero(dup >= 0)
     if len(dropped):
         # The kernel keeps the copy it inserted first; keep the lowest index instead, so a fixed
         # node (they come first) is never the one left out in favour of a free node on it.
+        # (A renaming of the nodes in use: the neighbours stay as they are.)
         lowest = np.arange(len(p))
         np.minimum.at(lowest, dup[dropped], dropped)
         tri = lowest[tri]
+    _LAST_NEIGHBOURS.remember(tri, nbr)
     return tri
+
+
+class _NeighbourMemo:
+    """The neighbour table of the triangles :func:`delaunay` returned last, while they live.
+
+    The Delaunay kernel knows every triangle's neighbours; :func:`classify_by_walls`, called on
+    those very triangles (the mesher's :func:`inside_triangles` after each :func:`delaunay`),
+    would otherwise find them again (0.15 s at 1e6 nodes).  It is handed the table only for
+    triangles equal to a private copy of the ones returned, so triangles changed in place since
+    get their own; and the entry goes with the returned array.  A valid triangulation has one
+    neighbour table, so the answer is the same either way.
+    """
+
+    def __init__(self) -> None:
+        self._entry: tuple[weakref.ref[IntArray], NDArray[np.int64], NDArray[np.int32]] | None = None
+
+    def remember(self, tri: IntArray, nbr: NDArray[np.int32]) -> None:
+        self._entry = None
+        try:
+            ref = weakref.ref(tri, self._forget)
+        except TypeError:  # pragma: no cover - every ndarray takes weak references
+            return
+        self._entry = (ref, np.array(tri, dtype=np.int64), nbr)
+
+    def _forget(self, ref: weakref.ref[IntArray]) -> None:
+        entry = self._entry
+        if entry is not None and entry[0] is ref:
+            self._entry = None
+
+    def recall(self, tri: NDArray[np.int64]) -> NDArray[np.int64] | None:
+        entry = self._entry
+        if entry is None or entry[1].shape != tri.shape or not np.array_equal(entry[1], tri):
+            return None
+        return entry[2].astype(np.int64)
+
+
+_LAST_NEIGHBOURS = _NeighbourMemo()
 
 
 def inside_triangles(
@@ -158,7 +199,9 @@ def classify_by_walls(triangles: IntArray, walls: IntArray) -> tuple[NDArray[np.
     if len(w) and int(w.min()) < 0:
         raise IndexError(f"walls refer to node {int(w.min())}")
     n = int(max(tri.max(initial=0), w.max(initial=0))) + 1
-    nbr = mesh.neighbours(tri, n)
+    nbr = _LAST_NEIGHBOURS.recall(tri)
+    if nbr is None:
+        nbr = mesh.neighbours(tri, n)
     return mesh.classify_by_walls(tri, nbr, w, n)  # type: ignore[no-any-return]
 
 

@@ -1497,6 +1497,10 @@ class LiveTriangulation:
         """``(m, 3)`` int32: the triangle opposite each corner of :attr:`triangles`, -1 on the hull."""
         return _compact(self._tri, self._nbr, int(self._meta[0]))[1]  # type: ignore[no-any-return]
 
+    def compact(self) -> tuple[IntArray, IntArray]:
+        """:attr:`triangles` and :attr:`neighbors` from one pass over the structure."""
+        return _compact(self._tri, self._nbr, int(self._meta[0]))  # type: ignore[no-any-return]
+
     @property
     def duplicates(self) -> IntArray:
         """``(n,)`` int32: for a point left out as an exact duplicate, the vertex it repeats; else -1."""

@@ -490,3 +490,116 @@ def relay(poly: np.ndarray, pchain: np.ndarray, ds: np.ndarray, closed: np.ndarr
     for c in range(n_chain):
         stays[c] = closed[c] and not collapse[c]
     return out, count, stays
+
+
+@numba.njit(cache=True)
+def nearest_occupied_below(occupied: np.ndarray, cell_h: np.ndarray, cj: np.ndarray, ci: np.ndarray,
+                           limit: float, max_radius: int) -> tuple[np.ndarray, np.ndarray]:
+    """Whether the nearest occupied cell of each cell ``(cj[k], ci[k])`` has ``cell_h`` below
+    ``limit`` (gap filling's test, :func:`injmesh.injection._fill_gaps`).
+
+    Nearest is by Euclidean distance between cell indices, as a distance transform of the
+    occupied cells gives it.  Square rings of cells are searched outwards: once the nearest
+    occupied cell found is at squared distance ``D <= r^2`` after ring r, every cell beyond
+    is farther, and every cell at distance ``D`` has been seen.  Where several occupied cells
+    are nearest, the answer stands only if they all agree (a distance transform picks one of
+    them by its own order of work).
+
+    Returns
+    -------
+    below, settled : (k,) bool arrays
+        ``below`` holds only where ``settled``: not where no occupied cell lies within
+        ``max_radius`` rings, nor where the nearest occupied cells disagree.
+    """
+    ny, nx = occupied.shape
+    k = cj.shape[0]
+    below = np.zeros(k, dtype=np.bool_)
+    settled = np.zeros(k, dtype=np.bool_)
+    for t in range(k):
+        j0, i0 = cj[t], ci[t]
+        best = -1
+        verdict = False
+        tied = False
+        for r in range(max_radius + 1):
+            for j in range(max(j0 - r, 0), min(j0 + r, ny - 1) + 1):
+                dj = j - j0
+                whole_row = dj == -r or dj == r
+                i = max(i0 - r, 0)
+                while i <= min(i0 + r, nx - 1):
+                    if occupied[j, i]:
+                        di = i - i0
+                        d = dj * dj + di * di
+                        v = cell_h[j, i] < limit
+                        if best < 0 or d < best:
+                            best, verdict, tied = d, v, False
+                        elif d == best and v != verdict:
+                            tied = True
+                    # Inner rows of the ring: only its two ends (a cell seen again changes nothing).
+                    i = i + 1 if whole_row or i >= i0 + r else i0 + r
+            if 0 <= best <= r * r:
+                settled[t] = not tied
+                below[t] = verdict
+                break
+    return below, settled
+
+
+@numba.njit(cache=True)
+def fill_census(pts: np.ndarray, hs: np.ndarray, x0: float, y0: float, s: float, nx: int, ny: int,
+                outside: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
+    """One level of gap filling's cells (:func:`injmesh.injection._fill_gaps`), in two passes.
+
+    Cell ``(j, i)`` of side s holds the points with ``floor((x - x0) / s) == i`` and
+    ``floor((y - y0) / s) == j``.  A cell is *deep* when it and its eight neighbours hold no
+    point (cells beyond the grid hold none); the cells to offer are the empty ones, not
+    ``outside``, next to (or being) a deep one.
+
+    Returns
+    -------
+    occupied : (ny, nx) bool array
+    cells : (ny, nx) bool array
+        The cells to offer.
+    cell_h : (ny, nx) float array
+        ``hs`` of the last point in each occupied cell, 0 elsewhere.
+    n_deep : int
+        How many cells are deep.
+    n_near : int
+        How many cells to offer are not deep (touch an occupied cell).
+    """
+    # One cell of margin all round; 3 x 3 neighbourhoods as a pass along rows, then columns.
+    occ = np.zeros((ny + 2, nx + 2), dtype=np.uint8)
+    cell_h = np.zeros((ny, nx))
+    for k in range(pts.shape[0]):
+        fx = math.floor((pts[k, 0] - x0) / s)
+        fy = math.floor((pts[k, 1] - y0) / s)
+        if 0.0 <= fx < nx and 0.0 <= fy < ny:
+            occ[int(fy) + 1, int(fx) + 1] = 1
+            cell_h[int(fy), int(fx)] = hs[k]
+    rows = np.zeros((ny + 2, nx), dtype=np.uint8)
+    for j in range(ny + 2):
+        for i in range(nx):
+            rows[j, i] = occ[j, i] | occ[j, i + 1] | occ[j, i + 2]
+    deep = np.zeros((ny + 2, nx + 2), dtype=np.uint8)
+    n_deep = 0
+    for j in range(ny):
+        for i in range(nx):
+            e = 1 - (rows[j, i] | rows[j + 1, i] | rows[j + 2, i])
+            deep[j + 1, i + 1] = e
+            n_deep += e
+    occupied = np.zeros((ny, nx), dtype=np.bool_)
+    for j in range(ny):
+        for i in range(nx):
+            occupied[j, i] = occ[j + 1, i + 1] != 0
+    cells = np.zeros((ny, nx), dtype=np.bool_)
+    if n_deep == 0:
+        return occupied, cells, cell_h, 0, 0
+    for j in range(ny + 2):
+        for i in range(nx):
+            rows[j, i] = deep[j, i] | deep[j, i + 1] | deep[j, i + 2]
+    n_near = 0
+    for j in range(ny):
+        for i in range(nx):
+            c = (rows[j, i] | rows[j + 1, i] | rows[j + 2, i]) & (1 - occ[j + 1, i + 1])
+            if c and not outside[j, i]:
+                cells[j, i] = True
+                n_near += 1 - deep[j + 1, i + 1]
+    return occupied, cells, cell_h, n_deep, n_near

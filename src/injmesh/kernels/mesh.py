@@ -112,25 +112,58 @@ def edge_index(tri, n):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def edge_census(tri, n):  # type: ignore[no-untyped-def]
-    """Distinct edges ``(k, 2)`` (i < j, sorted) and how many triangles run along each edge
-    from i to j (``forward``) and from j to i (``backward``).
+def unusual_edges(tri, n):  # type: ignore[no-untyped-def]
+    """The edges that are not run along once each way: ``(k, 2)`` (i < j, sorted), and how many
+    triangles run along each from i to j (``forward``) and from j to i (``backward``).
 
-    In a valid mesh every edge has ``forward + backward`` 1 (boundary) or 2 (one each way);
-    a count above 1 in one direction is two triangles overlapping on that side.
+    In a valid mesh these are the boundary edges (``forward + backward == 1``); a count above 1
+    in one direction is two triangles overlapping on that side.  The ordinary edges (one
+    triangle each way: almost all of them) are counted in the short rows of half-edges filed
+    under their smaller vertex and never listed, so no edge list of the whole mesh is built.
     """
-    edges, edge_of = edge_index(tri, n)
-    k = edges.shape[0]
-    forward = np.zeros(k, dtype=np.int64)
-    backward = np.zeros(k, dtype=np.int64)
-    for t in range(tri.shape[0]):
-        for c in range(3):
-            e = edge_of[3 * t + c]
-            if tri[t, (c + 1) % 3] == edges[e, 0]:
-                forward[e] += 1
-            else:
-                backward[e] += 1
-    return edges, forward, backward
+    start, other, hid = _rows_by_low_vertex(tri, n)
+    cap = 16
+    out = np.empty((cap, 4), dtype=np.int64)
+    k = 0
+    for v in range(n):
+        row0 = k
+        for s in range(start[v], start[v + 1]):
+            o = other[s]
+            seen = False
+            for r in range(start[v], s):
+                if other[r] == o:
+                    seen = True
+                    break
+            if seen:
+                continue
+            fwd = 0
+            bwd = 0
+            for r in range(s, start[v + 1]):
+                if other[r] == o:
+                    h = hid[r]
+                    t = h // 3
+                    if tri[t, (h - 3 * t + 1) % 3] == v:
+                        fwd += 1
+                    else:
+                        bwd += 1
+            if fwd == 1 and bwd == 1:
+                continue
+            if k == cap:
+                cap *= 2
+                grown = np.empty((cap, 4), dtype=np.int64)
+                grown[:k] = out[:k]
+                out = grown
+            # Insertion into this vertex's run, kept sorted by the other end.
+            r = k
+            while r > row0 and out[r - 1, 1] > o:
+                out[r] = out[r - 1]
+                r -= 1
+            out[r, 0] = v
+            out[r, 1] = o
+            out[r, 2] = fwd
+            out[r, 3] = bwd
+            k += 1
+    return out[:k, :2].copy(), out[:k, 2].copy(), out[:k, 3].copy()
 
 
 @njit(cache=True)
@@ -191,6 +224,87 @@ def close_pairs(pts, cell, order, eps):  # type: ignore[no-untyped-def]
     pairs[:, 0] = out_a[:count]
     pairs[:, 1] = out_b[:count]
     return pairs
+
+
+@njit(cache=True)
+def close_pairs_binned(pts, eps, max_work):  # type: ignore[no-untyped-def]
+    """Pairs ``(i, j)``, ``i < j``, of points closer than ``eps`` in both coordinates, found
+    in square bins about one point wide (at least ``2 eps``): a point's partners lie in its
+    own bin or, if it is that close to a side, in the bins beyond.  Linear in the number of
+    points when they are spread out like mesh nodes, with no sort.
+
+    Returns the pairs and True, or no pairs and False when the bins would cost more than
+    ``max_work`` comparisons (points crowded into a few bins): :func:`close_pairs` then.
+    """
+    n = pts.shape[0]
+    empty = np.empty((0, 2), dtype=np.int64)
+    xmin, xmax, ymin, ymax = pts[0, 0], pts[0, 0], pts[0, 1], pts[0, 1]
+    for i in range(n):
+        xmin = min(xmin, pts[i, 0])
+        xmax = max(xmax, pts[i, 0])
+        ymin = min(ymin, pts[i, 1])
+        ymax = max(ymax, pts[i, 1])
+    w = max(math.sqrt(max((xmax - xmin) * (ymax - ymin), 0.0) / n), 2.0 * eps)
+    if not (w > 0.0 and math.isfinite(w)):
+        return empty, False
+    nx = min(int((xmax - xmin) / w) + 1, 4 * n + 1)
+    ny = min(int((ymax - ymin) / w) + 1, (4 * n) // nx + 1)
+    # Bins capped in number stay at least w wide, so partners are still in adjacent bins.
+    wx = max(w, (xmax - xmin) / nx * (1.0 + 1e-12))
+    wy = max(w, (ymax - ymin) / ny * (1.0 + 1e-12))
+    bx = np.empty(n, dtype=np.int64)
+    by = np.empty(n, dtype=np.int64)
+    start = np.zeros(nx * ny + 1, dtype=np.int64)
+    for i in range(n):
+        bx[i] = min(int((pts[i, 0] - xmin) / wx), nx - 1)
+        by[i] = min(int((pts[i, 1] - ymin) / wy), ny - 1)
+        start[by[i] * nx + bx[i] + 1] += 1
+    work = 0
+    for b in range(nx * ny):
+        work += start[b + 1] * start[b + 1]
+        start[b + 1] += start[b]
+    if work > max_work:
+        return empty, False
+    fill = start[:-1].copy()
+    member = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        b = by[i] * nx + bx[i]
+        member[fill[b]] = i
+        fill[b] += 1
+    out_a = np.empty(16, dtype=np.int64)
+    out_b = np.empty(16, dtype=np.int64)
+    count = 0
+    # A point more than 2 eps (rounding to spare) from a side of its bin has no partner beyond
+    # it: most points look in their own bin only.
+    mx = 2.0 * eps / wx
+    my = 2.0 * eps / wy
+    for i in range(n):
+        xi = pts[i, 0]
+        yi = pts[i, 1]
+        fx = (xi - xmin) / wx - bx[i]
+        fy = (yi - ymin) / wy - by[i]
+        j_lo = by[i] - 1 if fy < my else by[i]
+        j_hi = by[i] + 1 if fy > 1.0 - my else by[i]
+        i_lo = bx[i] - 1 if fx < mx else bx[i]
+        i_hi = bx[i] + 1 if fx > 1.0 - mx else bx[i]
+        for j_bin in range(max(j_lo, 0), min(j_hi, ny - 1) + 1):
+            for i_bin in range(max(i_lo, 0), min(i_hi, nx - 1) + 1):
+                b = j_bin * nx + i_bin
+                for s in range(start[b], start[b + 1]):
+                    j = member[s]
+                    if j <= i:
+                        continue
+                    if abs(pts[j, 0] - xi) <= eps and abs(pts[j, 1] - yi) <= eps:
+                        if count == out_a.shape[0]:
+                            out_a = np.concatenate((out_a, np.empty(count, dtype=np.int64)))
+                            out_b = np.concatenate((out_b, np.empty(count, dtype=np.int64)))
+                        out_a[count] = i
+                        out_b[count] = j
+                        count += 1
+    pairs = np.empty((count, 2), dtype=np.int64)
+    pairs[:, 0] = out_a[:count]
+    pairs[:, 1] = out_b[:count]
+    return pairs, True
 
 
 @njit(cache=True)
