@@ -402,12 +402,13 @@ def test_inside_polygon_by_strips_matches_the_plain_even_odd_loop(shape: str) ->
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), n=st.integers(3, 300),
        kind=st.sampled_from(["random", "lattice", "dups"]))
-def test_delaunay_remembers_the_neighbours_of_its_triangles(seed: int, n: int, kind: str) -> None:
-    """The neighbour table delaunay() keeps for classify_by_walls is the one neighbours()
-    finds, on random points, cocircular lattices and points with exact duplicates; triangles
-    changed in place, or another array, are not handed it."""
+def test_delaunay_gives_the_neighbours_of_its_triangles(seed: int, n: int, kind: str) -> None:
+    """The neighbour table delaunay_with_neighbours() hands on is the one neighbours() finds,
+    on random points, cocircular lattices and points with exact duplicates (left out of the
+    triangles); its triangles are delaunay()'s; and inside_triangles() given the table keeps
+    the same triangles as without it."""
     from injmesh.kernels import mesh
-    from injmesh.triangulation import _LAST_NEIGHBOURS
+    from injmesh.triangulation import delaunay_with_neighbours, inside_triangles
 
     rng = np.random.default_rng(seed)
     if kind == "lattice":
@@ -417,14 +418,22 @@ def test_delaunay_remembers_the_neighbours_of_its_triangles(seed: int, n: int, k
         p = rng.random((n, 2))
         if kind == "dups":
             p = np.concatenate([p, p[rng.integers(0, n, n // 3 + 1)]])
-    tri = delaunay(p)
-    t64 = np.array(tri, dtype=np.int64)  # a copy: equal triangles, not the array returned
-    remembered = _LAST_NEIGHBOURS.recall(t64)
-    assert remembered is not None
-    assert np.array_equal(remembered, mesh.neighbours(t64, len(p)))
-    assert _LAST_NEIGHBOURS.recall(t64[::-1].copy()) is None or len(t64) == 1
-    if len(tri) > 1:
-        tri[[0, 1]] = tri[[1, 0]]
-        assert _LAST_NEIGHBOURS.recall(np.ascontiguousarray(tri, dtype=np.int64)) is None
-    del tri
-    assert _LAST_NEIGHBOURS.recall(t64) is None  # forgotten with the array it was kept for
+    tri, nbr = delaunay_with_neighbours(p)
+    assert np.array_equal(tri, delaunay(p))
+    t64 = np.array(tri, dtype=np.int64)
+    assert np.array_equal(nbr, mesh.neighbours(t64, len(p)))
+    # The hull's edges as walls (counter-clockwise: the domain on their left).
+    a = t64.ravel()
+    b = t64[:, [1, 2, 0]].ravel()
+    hull = (nbr[:, [2, 0, 1]].ravel() < 0)
+    walls = np.stack([a[hull], b[hull]], axis=1)
+
+    def outside(q):  # type: ignore[no-untyped-def]
+        return np.full(len(q), 1.0)  # wrong everywhere: only the walls' flood fill keeps triangles
+
+    kept = inside_triangles(p, tri, outside, walls, nbr)
+    assert np.array_equal(kept, inside_triangles(p, tri, outside, walls))
+    from injmesh.triangulation import FLAT
+
+    _, _, flat = mesh.centroids_and_flatness(p, t64, FLAT)
+    assert len(kept) == len(tri) - int(flat.sum())

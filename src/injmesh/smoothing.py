@@ -147,7 +147,13 @@ from ._arrays import lower_wins
 from .geometry import Domain
 from .progress import Callback, report
 from .quality import triangle_quality
-from .triangulation import constrained_triangles, delaunay, inside_triangles, recover_segments
+from .triangulation import (
+    constrained_triangles,
+    delaunay,
+    delaunay_with_neighbours,
+    inside_triangles,
+    recover_segments,
+)
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -324,7 +330,8 @@ class Interfaces:
 def triangulate(domain: Domain, p: FloatArray, walls: IntArray | None = None) -> IntArray:
     """Delaunay triangles of ``p`` with those outside the domain (or outside the boundary
     segments ``walls``, near the boundary) removed."""
-    return inside_triangles(p, delaunay(p), domain.sdf, walls)
+    tri, nbr = delaunay_with_neighbours(p)
+    return inside_triangles(p, tri, domain.sdf, walls, nbr)
 
 
 class _Relaxation:
