@@ -308,12 +308,14 @@ def _suited(domain: Domain, h: SizeFn, q: FloatArray, s: float,
 #: FILL_NEAR_SHARE of the cells to decide touch an occupied cell (else they are mostly far from
 #: every node, and a distance transform of the whole level is cheaper), rings of cells up to
 #: FILL_RINGS[0] around each, then up to FILL_RINGS[1] if at most 1 / FILL_FEW of the level's
-#: cells are left.  A ring search visits cells about ten times faster than the transform works
-#: per cell.
+#: cells are left; the transform decides the rest.  A ring search visits cells about ten
+#: times faster than the transform works per cell.
 FILL_RINGS = (3, 8)
 FILL_SEARCH_CELLS = 1 << 19
 FILL_NEAR_SHARE = 0.2
 FILL_FEW = 256
+#: ... and a sample of every FILL_SAMPLE-th cell predicts whether it is so.
+FILL_SAMPLE = 16
 
 
 def _near_small_h(occupied: NDArray[np.bool_], cell_h: FloatArray, cells: NDArray[np.bool_],
@@ -334,6 +336,15 @@ def _near_small_h(occupied: NDArray[np.bool_], cell_h: FloatArray, cells: NDArra
     occ = np.ascontiguousarray(occupied)
     out = np.zeros_like(cells)
     unsettled = cells.copy()
+    cj, ci = np.nonzero(cells)
+    if len(cj) >= FILL_SAMPLE * FILL_FEW:
+        # Every FILL_SAMPLE-th cell first: if too many would be left unsettled, the transform
+        # decides them all, and the search would be spent for nothing (the 1e5-node graded
+        # disc's finest level: 20 % of a million cells far from every node, 0.14 s).
+        cj, ci = cj[::FILL_SAMPLE].astype(np.int64), ci[::FILL_SAMPLE].astype(np.int64)
+        _, settled = nearest_occupied_below(occ, cell_h, cj, ci, float(limit), FILL_RINGS[0])
+        if (len(cj) - int(np.count_nonzero(settled))) * FILL_SAMPLE * FILL_FEW > cells.size:
+            return out, unsettled
     for rings in FILL_RINGS:
         cj, ci = np.nonzero(unsettled)
         below, settled = nearest_occupied_below(occ, cell_h, cj.astype(np.int64), ci.astype(np.int64),
