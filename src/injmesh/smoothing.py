@@ -1532,6 +1532,13 @@ def _optimize(
     start, by_node = corners_by_node(t64, n)
     q = triangle_quality(p, tri)
     star = star_min(start, by_node, q)
+
+    def star_of(nodes: IntArray) -> NDArray[np.int64]:
+        """The triangles around each of ``nodes``, one row per corner, node by node."""
+        cnt = start[nodes + 1] - start[nodes]
+        offset = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        return t64[by_node[np.repeat(start[nodes], cnt) + offset] // 3]
+
     moves = np.zeros(n, dtype=np.intp)
     # Nodes whose last trial failed and whose star has not changed since: the same trial
     # would fail again, so they are not candidates (nor block a neighbour's move).
@@ -1547,9 +1554,7 @@ def _optimize(
         rank = np.full(n, -1, dtype=np.intp)
         rank[order] = np.arange(len(order))
         # Conflicts: the sides, between two candidates, of the candidates' triangles.
-        cnt = start[order + 1] - start[order]
-        offset = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-        ct = t64[by_node[np.repeat(start[order], cnt) + offset] // 3]
+        ct = star_of(order)
         bars = np.concatenate([ct[:, [0, 1]], ct[:, [1, 2]], ct[:, [2, 0]]])
         both = cand[bars[:, 0]] & cand[bars[:, 1]]
         ra, rb = rank[bars[both, 0]], rank[bars[both, 1]]
@@ -1583,9 +1588,7 @@ def _optimize(
         moves[moved] += 1
         failed[move[~done]] = True
         # The moved nodes' triangles changed, and with them the stars of all their nodes.
-        cnt = start[moved + 1] - start[moved]
-        offset = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-        failed[t64[by_node[np.repeat(start[moved], cnt) + offset] // 3].ravel()] = False
+        failed[star_of(moved).ravel()] = False
         # q of the triangles that changed, and the stars of their nodes.
         restar(p, t64, start, by_node, q, star, moved)
     return p
