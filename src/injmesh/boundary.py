@@ -171,7 +171,7 @@ def mesh_boundary(
         raise GeometryError("the domain has no boundary inside its bounding box")
     loops = _drop_tiny(order_loops(loops), h)
 
-    corners = np.concatenate([domain.corners(), _resolved_vertices(domain, h)])
+    corners = np.concatenate([domain.corners(), _resolved_vertices(domain, h), _tip_walls(domain, h)])
     if len(fixed_points):
         dfix = domain.sdf(fixed_points)
         if np.any(dfix > on):
@@ -289,6 +289,72 @@ def _tip_graded(domain: Domain, h: SizeFn) -> SizeFn:
     return _TipGraded(h, tips, kappa, r1, reach)
 
 
+def _tip_walls(domain: Domain, h: SizeFn) -> FloatArray:
+    """Nodes held on both walls of a sharp corner whose shorter wall ends before the tip's
+    grading does, at the same distances from the tip.
+
+    :func:`_tip_graded` lays a corner's walls in whole h-lengths from the tip, which puts the
+    nodes of both walls at the same distances only while both walls go on (it grades up to
+    ``h(tip) / kappa``, 3-8 h for 20-7 degrees).  A spike or inlet shorter than that (a
+    coastline's, a fraction of h long) ends its shorter wall at a polygon vertex first: the
+    walls then got nodes at different distances (the longer wall's rounding and balancing,
+    then the encroachment splits of :func:`_split_encroached`, which halve each wall by its
+    own length), and the tip triangle was far from isosceles (an 11.8-degree coastline spike
+    of walls 0.13 and 0.16 h: q = 0.21 where the angle allows 0.37).
+
+    Here the shorter wall's length ``L`` sets the layout: nodes at ``L / g**k`` on both walls
+    (``g = 1 + 2 sin(a / 2)``, the grading factor of :func:`_tip_graded`, so the strip between
+    the walls is of nearly square trapezoids), k = 0, 1, ... down to the first at most
+    ``h(tip)``, which makes the isosceles tip triangle.  ``k = 0`` is the shorter wall's own
+    end, so it is added on the longer wall only, and only when that wall is longer by half a
+    step (else its end is nearly there).  Only corners between two straight pieces.
+
+    Returns
+    -------
+    (k, 2) array
+        Points on the walls, to be held fixed like corners.
+    """
+    brep = _exact_brep(domain)
+    if brep is None:
+        return np.empty((0, 2))
+    pts, turn, before, after = brep.junctions()
+    angle = 180.0 - turn
+    sharp = np.flatnonzero(angle < SHARP_CORNER)
+    if len(sharp) == 0:
+        return np.empty((0, 2))
+    start = brep.loop_start
+    loop = np.searchsorted(start, sharp, side="right") - 1
+    lo, hi = start[loop], start[loop + 1]
+    # Junction i ends piece i and starts the next one: its walls end at junctions i -/+ 1.
+    prev = np.where(sharp == lo, hi - 1, sharp - 1)
+    nxt = np.where(sharp == hi - 1, lo, sharp + 1)
+    tips = pts[sharp]
+    ends = (pts[prev], pts[nxt])
+    walls = (before[sharp], after[sharp])
+    straight = np.ones(len(sharp), dtype=bool)
+    for end, length in zip(ends, walls, strict=True):
+        chord = np.hypot(*(end - tips).T)
+        straight &= np.abs(chord - length) <= 1e-9 * length  # an arc is longer than its chord
+    a = np.radians(angle[sharp])
+    g = 1.0 + 2.0 * np.sin(0.5 * a)
+    ht = h(tips)
+    short = np.minimum(walls[0], walls[1])
+    out = []
+    for c in np.flatnonzero(straight & (short < ht / np.log(g))).tolist():
+        r = [short[c]]
+        while r[-1] > ht[c] and len(r) < TIP_STEPS:
+            r.append(r[-1] / g[c])
+        for end, length in zip(ends, walls, strict=True):
+            unit = (end[c] - tips[c]) / length[c]
+            # The shorter wall's end is a vertex already; the longer one needs a node there
+            # unless its own end is within half a step.
+            first = 1 if length[c] < short[c] * (1.0 + 0.5 * (g[c] - 1.0)) else 0
+            out.extend(tips[c] + rk * unit for rk in r[first:])
+    return np.asarray(out, dtype=float).reshape(-1, 2)
+
+
+#: Nodes laid on each wall of a sharp corner by :func:`_tip_walls`, at most.
+TIP_STEPS = 64
 #: Corners with an interior angle below this (degrees) are sharp: see :func:`_pin_wedges`.
 SHARP_CORNER = 25.0
 #: Nodes of a sharp corner's walls are held still where the walls are closer than this times h.
@@ -373,7 +439,41 @@ def corner_spacing(domain: Domain, h: SizeFn) -> tuple[FloatArray, FloatArray]:
         out_s.append(np.minimum(gap, np.roll(gap, 1)))
     if not out_p:
         return np.empty((0, 2)), np.empty(0)
-    return np.concatenate(out_p), np.concatenate(out_s)
+    p, spacing = np.concatenate(out_p), np.concatenate(out_s)
+    return p, _across(domain, p, spacing)
+
+
+def _across(domain: Domain, p: FloatArray, spacing: FloatArray) -> FloatArray:
+    """``spacing`` lowered to the distance to a nearer fixed junction across the domain.
+
+    Two corners can be far apart along the boundary and close across the domain: the mouth
+    of a spike or an inlet narrower than h (a coastline's, a fraction of h wide and long), where
+    the boundary turns away on both sides.  The mouth's segment is then a mesh edge, and with
+    the boundary beyond it laid at h the triangles on it were slivers (q = 0.16 at an inlet
+    0.03 h wide; the feature size, whose grid is coarser than such a mouth, does not see it).
+    The segment between the two must cross the domain (its midpoint inside by a tenth of its
+    length): corners facing each other across a notch of the outside need nothing.
+    """
+    k = min(ACROSS_NEIGHBOURS + 1, len(p))
+    if k < 2:
+        return spacing
+    dist, near = cKDTree(p).query(p, k=k)
+    dist, near = dist[:, 1:], near[:, 1:]
+    rows, cols = np.nonzero(dist < spacing[:, None] * (1.0 - 1e-9))
+    if len(rows) == 0:
+        return spacing
+    d = dist[rows, cols]
+    mid = 0.5 * (p[rows] + p[near[rows, cols]])
+    inside = domain.sdf(mid) < -ACROSS_DEPTH * d
+    out = spacing.copy()
+    np.minimum.at(out, rows[inside], d[inside])
+    return out
+
+
+#: :func:`_across` looks at this many nearest fixed junctions of each, and counts one whose
+#: segment's midpoint lies this far (a fraction of its length) inside the domain.
+ACROSS_NEIGHBOURS = 4
+ACROSS_DEPTH = 0.1
 
 
 class _CornerCap:
