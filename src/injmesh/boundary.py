@@ -455,12 +455,14 @@ def _exact_brep(domain: Domain) -> BRep | None:
 
 def corner_spacing(domain: Domain, h: SizeFn) -> tuple[FloatArray, FloatArray]:
     """The junctions Step 1 holds fixed and, for each, the distance along the boundary to the
-    nearest other fixed junction of its loop.
+    nearest other fixed junction of its loop, or to one facing it across the domain if nearer.
 
     Fixed junctions are the corners (turning more than ``CORNER_ANGLE`` degrees) and the
     vertices :func:`_resolved_vertices` keeps.  A boundary segment cannot be longer than the
     stretch between two fixed nodes, so this distance is the longest segment Step 1 can lay
-    next to the corner.
+    next to the corner; across the domain (the mouth of an inlet or a spike, :func:`_across`)
+    it is the length of a mesh edge there.  The mouths of sharp corners shorter than their
+    grading (:func:`_mouths`) follow the junctions, with their width.
 
     Returns
     -------
