@@ -141,7 +141,6 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from ._arrays import lower_wins
 from .geometry import Domain
@@ -1309,6 +1308,8 @@ def _conform(
     Nodes in ``pinned`` (boundary nodes added by recovery) never move.  ``interior`` segments
     (interior curves) are recovered too but do not bound the domain.
     """
+    from scipy.spatial import cKDTree
+
     count = 0
     required = walls if interior is None else np.concatenate([walls, interior])
     before = len(required) + 1
@@ -1387,6 +1388,8 @@ def _split_worthy(h: SizeFn, p: FloatArray, seg: IntArray, either_side: bool = F
                   alive: NDArray[np.bool_] | None = None) -> NDArray[np.bool_]:
     """Segments longer than ``SPLIT_MIN * h`` with a node inside their diametral circle on the
     domain's side (left of a -> b; on either side for an interior curve)."""
+    from scipy.spatial import cKDTree
+
     if len(seg) == 0:
         return np.zeros(0, dtype=bool)
     a, b = p[seg[:, 0]], p[seg[:, 1]]
@@ -1426,6 +1429,8 @@ def _recover_interfaces(
     no triangle (``smooth`` removes them).  Returns the points, triangles, segments, their
     curve, every node's curve and the number of triangulations.
     """
+    from scipy.spatial import cKDTree
+
     seg, group = itf.segments.copy(), itf.group.copy()
     node_group = np.zeros(len(p), dtype=np.intp)
     node_group[: len(itf.node_group)] = itf.node_group
