@@ -595,12 +595,18 @@ def drifted(p, anchor, hbar, tol, tri):  # type: ignore[no-untyped-def]
 
 def threaded_bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total, damp):  # type: ignore[no-untyped-def]
     """:func:`bar_forces` over chunks of ``nodes`` on several threads (same numbers)."""
+    if not threads.worth(len(nodes)):  # a small mesh: no ~8 us of hand-off per call
+        bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total, damp)
+        return
     threads.each(len(nodes), lambda lo, hi: bar_forces(p, nodes[lo:hi], indptr, adj, eid, ld,
                                                       attraction, total, damp))
 
 
 def threaded_stable_scale(p, nodes, indptr, adj, eid, ld, step, gain, out):  # type: ignore[no-untyped-def]
     """:func:`stable_scale` over chunks of ``nodes`` on several threads (same numbers)."""
+    if not threads.worth(len(nodes)):
+        stable_scale(p, nodes, indptr, adj, eid, ld, step, gain, out)
+        return
     threads.each(len(nodes), lambda lo, hi: stable_scale(p, nodes[lo:hi], indptr, adj, eid, ld,
                                                         step, gain, out))
 
@@ -612,6 +618,8 @@ def threaded_advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, nea
     moved down in chunk order, and the largest move keeps the serial loop's tie (the first
     node), so the result is the serial one.
     """
+    if not threads.worth(len(free)):
+        return advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near, tol)
     parts = threads.each(len(free), lambda lo, hi: (lo, advance(
         p, free[lo:hi], total, hbar, dt, step_cap, deep, anchor, cand[lo:], near[lo:], tol)))
     c, worst, at, drift, count = 0, -1.0, -1, 0.0, 0

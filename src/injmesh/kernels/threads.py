@@ -83,6 +83,11 @@ def limit(n: int) -> Iterator[None]:
         _state.cap = old
 
 
+def worth(n: int) -> bool:
+    """Would :func:`each` split a list of ``n`` nodes?  (Callers of small lists skip it.)"""
+    return n >= 2 * MIN_CHUNK and threads() > 1
+
+
 def chunks(n: int) -> list[tuple[int, int]]:
     """Consecutive ``(lo, hi)`` ranges covering ``range(n)``: up to :data:`PER_THREAD` per
     thread, each at least :data:`MIN_CHUNK` long (one range when threads cannot help)."""
