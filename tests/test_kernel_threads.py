@@ -141,3 +141,19 @@ def test_drifted_lists_equal_the_plain_test(seed: int, n: int, chunks: int) -> N
     mark = np.hypot(*(p - anchor).T) > 0.25 * hbar
     assert np.array_equal(moved, np.flatnonzero(mark))
     assert rows.dtype == np.int32 and np.array_equal(rows, np.flatnonzero(mark[tri].any(axis=1)))
+
+
+def test_threads_stay_within_the_cores_this_process_may_use() -> None:
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    if not hasattr(os, "sched_setaffinity"):
+        pytest.skip("no CPU affinity on this platform")
+    code = ("import os; os.sched_setaffinity(0, {min(os.sched_getaffinity(0))}); "
+            "from injmesh.kernels import threads; assert threads.threads() == 1, threads.threads(); "
+            "assert not threads.worth(10 ** 7)")
+    env = dict(os.environ, NUMBA_NUM_THREADS="8",
+               PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
+    subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=120)

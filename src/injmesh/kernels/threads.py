@@ -13,10 +13,11 @@ and the GNU OpenMP layer is not safe after ``fork`` (a process pool).  Plain thr
 ``nogil`` kernels are safe in both: concurrent callers share the pool (each chunk is
 independent), and a forked child starts its own pool.
 
-The number of threads is numba's ``NUMBA_NUM_THREADS`` (the machine's cores unless set),
-capped by :func:`limit`; a list is cut into chunks of at least :data:`MIN_CHUNK` nodes (a
-shorter one runs on the calling thread, where a hand-off would cost more than it saves), a
-few per thread, which the threads take in turn as they get to run.
+The number of threads is numba's ``NUMBA_NUM_THREADS`` (the machine's cores unless set), at
+most the cores the process may run on, and capped by :func:`limit`; a list is cut into chunks
+of at least :data:`MIN_CHUNK` nodes (a shorter one runs on the calling thread, where a
+hand-off would cost more than it saves), a few per thread, which the threads take in turn as
+they get to run.
 
 Examples
 --------
@@ -31,6 +32,7 @@ Examples
 from __future__ import annotations
 
 import contextlib
+import functools
 import itertools
 import os
 import threading
@@ -64,10 +66,21 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_reset_after_fork)
 
 
+@functools.lru_cache(maxsize=1)
+def _usable_cores(pid: int) -> int:
+    # The cores this process may run on (a container or taskset can allow fewer than the
+    # machine has, which is what NUMBA_NUM_THREADS defaults to); per process, as after fork.
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
 def threads() -> int:
-    """Threads a kernel may use now: ``NUMBA_NUM_THREADS``, at most :func:`limit`'s cap."""
+    """Threads a kernel may use now: ``NUMBA_NUM_THREADS``, at most the cores this process may
+    use and :func:`limit`'s cap."""
+    n = min(max(1, int(getattr(config, "NUMBA_NUM_THREADS", 1))), _usable_cores(os.getpid()))
     cap = getattr(_state, "cap", None)
-    n = max(1, int(getattr(config, "NUMBA_NUM_THREADS", 1)))
     return n if cap is None else max(1, min(n, cap))
 
 
