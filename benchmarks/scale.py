@@ -18,8 +18,11 @@ In the same run, the yardstick: ``scipy.spatial.Delaunay`` of as many random poi
 mesh has nodes (one Qhull call; ``ratio`` = injmesh wall / scipy wall).  With ``--peers``:
 gmsh 2-D Frontal-Delaunay (Mesh.Algorithm 6, one thread) on the same domain and size function,
 and Triangle (``pq30a...``, its area bound calibrated to give the same N; square only) if the
-``triangle`` package is importable.  Quality q is Eq. (5.1) and the size error is the mean of
-``|l / h(midpoint) - 1|`` over edges, with respect to the same h, for every mesher.
+``triangle`` package is importable.  With ``--one-thread``: injmesh again with
+``NUMBA_NUM_THREADS=1`` (its step kernels then run on the calling thread only), to show what
+the threads gain in the same run and that the mesh is the same.  Quality q is Eq. (5.1) and
+the size error is the mean of ``|l / h(midpoint) - 1|`` over edges, with respect to the same
+h, for every mesher.
 
 The issue's targets (issue 7, "A compiled core") are printed beside the measurements with a
 pass/fail column.  These machines are shared and loaded: compare ratios measured in one run
@@ -28,7 +31,7 @@ pass/fail column.  These machines are shared and loaded: compare ratios measured
 Usage::
 
     python benchmarks/scale.py [--sizes 1e3,1e4,1e5] [--repeat 1] [--peers] [--graded]
-                               [--json results.json]
+                               [--one-thread] [--json results.json]
     python benchmarks/scale.py --tables-from results.json   # print the tables again
 
 ``--sizes 1e3,1e4,1e5,1e6`` adds the million-node run (minutes with today's code).
@@ -37,6 +40,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import os
@@ -57,6 +61,7 @@ MARK = "SCALEBENCH-JSON "
 GRADE = 20.0  # h_max / h_min of the graded disc
 CASES = ("square", "graded")
 MIB = 2.0**20
+ONE_THREAD = "injmesh-1-thread"  # injmesh with NUMBA_NUM_THREADS=1 (--one-thread)
 
 # The issue's targets (on this 2-core machine).
 T_1E6 = 10.0  # seconds, uniform square, 1e6 nodes
@@ -156,6 +161,7 @@ def child_injmesh(case: str, n: float) -> dict:
         wall=wall, cpu=cpu, stage_wall=dict(mesh.stats.seconds), stage_cpu=clock.cpu,
         iterations=mesh.stats.iterations, converged=mesh.stats.converged, valid=mesh.stats.valid,
         peak_rss=peak, base_rss=base, first_call=first_call,
+        digest=hashlib.sha256(mesh.points.tobytes() + mesh.triangles.tobytes()).hexdigest()[:16],
     )
     return out
 
@@ -242,7 +248,7 @@ def child_triangle(n: float) -> dict:
 def child(tool: str, case: str, n: float) -> dict:
     import injmesh.quality  # noqa: F401  (scipy: loaded before any baseline RSS is read)
 
-    if tool == "injmesh":
+    if tool in ("injmesh", ONE_THREAD):
         return child_injmesh(case, n)
     if tool == "scipy":
         return child_scipy(n)
@@ -268,8 +274,10 @@ def run(tool: str, case: str, n: float, repeat: int, timeout: float) -> dict:
     for _ in range(repeat):
         cmd = [sys.executable, str(Path(__file__).resolve()), "--child", tool, "--case", case,
                "--n", repr(float(n))]
+        env = dict(os.environ, NUMBA_NUM_THREADS="1") if tool == ONE_THREAD else None
         try:
-            p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, check=False)
+            p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, check=False,
+                               env=env)
         except subprocess.TimeoutExpired:
             return {"error": f"timed out after {timeout:.0f} s"}
         lines = [ln for ln in p.stdout.splitlines() if ln.startswith(MARK)]
@@ -434,7 +442,26 @@ def case_tables(case: str, results: dict, peers: list[str]) -> str:
     ]
     if peers:
         out += [f"### Peers, {title} (same h; one thread)\n", peers_table(results, tools) + "\n"]
+    if any(ONE_THREAD in r for r in results.values()):
+        out += [f"### Threads, {title}: the default against NUMBA_NUM_THREADS=1 in the same run\n",
+                threads_table(results) + "\n"]
     return "\n".join(out)
+
+
+def threads_table(results: dict) -> str:
+    """injmesh's default threads against one thread: wall, CPU, and whether the meshes are the
+    same bit for bit (a hash of points and triangles)."""
+    header = ["target N", "wall s (default)", "wall s (1 thread)", "ratio", "CPU s (default)",
+              "CPU s (1 thread)", "same mesh (hash)"]
+    rows = []
+    for n, r in results.items():
+        a, b = r.get("injmesh", {}), r.get(ONE_THREAD, {})
+        if "wall" not in a or "wall" not in b:
+            continue
+        same = a.get("digest") is not None and a.get("digest") == b.get("digest")
+        rows.append([f"{n:.0e}", f"{a['wall']:.2f}", f"{b['wall']:.2f}", f"{a['wall'] / b['wall']:.2f}",
+                     f"{a['cpu']:.2f}", f"{b['cpu']:.2f}", "yes" if same else "NO"])
+    return markdown_table(header, rows)
 
 
 def targets_table(all_results: dict) -> tuple[str, list[list[str]]]:
@@ -452,7 +479,7 @@ def reprint(path: Path) -> None:
         case: {float(n): r for n, r in res.items()} for case, res in report["cases"].items()
     }
     for case, results in all_results.items():
-        peers = sorted({t for r in results.values() for t in r} - {"injmesh", "scipy"})
+        peers = sorted({t for r in results.values() for t in r} - {"injmesh", "scipy", ONE_THREAD})
         print(case_tables(case, results, peers))
     print(targets_table(all_results)[0])
 
@@ -463,6 +490,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=1, help="runs per measurement (least wall time kept)")
     ap.add_argument("--peers", action="store_true", help="also gmsh Frontal-Delaunay and Triangle")
     ap.add_argument("--graded", action="store_true", help="also the 20:1 graded disc")
+    ap.add_argument("--one-thread", action="store_true",
+                    help="also injmesh with NUMBA_NUM_THREADS=1, to compare in the same run")
     ap.add_argument("--json", type=Path, help="write every measurement to this file")
     ap.add_argument("--tables-from", type=Path, metavar="JSON",
                     help="print the tables of an earlier --json file and exit")
@@ -497,6 +526,8 @@ def main() -> None:
             r = results[n] = {"injmesh": run("injmesh", case, n, args.repeat, args.timeout)}
             n_real = r["injmesh"].get("N", n)
             r["scipy"] = run("scipy", case, n_real, args.repeat, args.timeout)
+            if args.one_thread:
+                r[ONE_THREAD] = run(ONE_THREAD, case, n, args.repeat, args.timeout)
             for peer in peers:
                 if peer == "triangle" and case != "square":
                     continue

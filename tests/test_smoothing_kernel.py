@@ -133,6 +133,8 @@ def test_one_ring_as_indices_is_the_ring_mask(k: int, n: int, raw: list[int], pa
 _RUN = """
 import numpy as np, hashlib
 from injmesh import Circle, Rectangle, generate
+from injmesh.kernels import threads
+threads.MIN_CHUNK = 256  # split these small meshes' steps as a million nodes' are
 m = generate(Rectangle((0, 0), (1, 1)), 0.08)
 # Graded 20:1 with a region: the slow tail's sub-mesh, local flips and sub-mesh repair run.
 g = generate(Circle((0, 0), 1), lambda p: 0.004 * (1 + 19 * np.hypot(p[:, 0], p[:, 1])),

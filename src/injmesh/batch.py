@@ -826,12 +826,15 @@ def _first_line(exc: BaseException) -> str:
     return text if len(text) <= 500 else text[:497] + "..."
 
 
-def run_task(task: dict[str, Any]) -> dict[str, Any]:
+def run_task(task: dict[str, Any], threads: int | None = None) -> dict[str, Any]:
     """Mesh one prepared spec; never raises for a bad spec.  Runs on a Dask worker.
 
-    Returns a dict with ``status``, ``message``, ``seconds``, ``worker`` and, when ``ok``, the
-    mesh figures and the file's bytes (``data``).
+    ``threads`` caps the threads of the mesher's kernels (1 on a cluster's workers, which
+    already run one task per core; the mesh is the same for any value).  Returns a dict with
+    ``status``, ``message``, ``seconds``, ``worker`` and, when ``ok``, the mesh figures and
+    the file's bytes (``data``).
     """
+    from .kernels.threads import limit
     from .pipeline import generate
 
     start = time.perf_counter()
@@ -849,7 +852,8 @@ def run_task(task: dict[str, Any]) -> dict[str, Any]:
             warnings.simplefilter("always")
             domain, own = _build_domain(task)
             size = _build_size(task, domain, own)
-            mesh = generate(domain, size, callback=check)
+            with limit(threads) if threads else contextlib.nullcontext():
+                mesh = generate(domain, size, callback=check)
             data = _encode(mesh, task["name"], task["format"])
         q = mesh.quality()
         report = mesh.size_report()
@@ -1338,7 +1342,7 @@ def _run_on_dask(client: Any, tasks: list[dict[str, Any]], finish: Callable[[dic
     from distributed import as_completed
 
     run = secrets.token_hex(4)  # keys unique to this run, readable on the Dask dashboard
-    futures = client.map(run_task, tasks, key=[f"injmesh-{t['name']}-{run}" for t in tasks])
+    futures = client.map(run_task, tasks, threads=1, key=[f"injmesh-{t['name']}-{run}" for t in tasks])
     by_key = {f.key: t for f, t in zip(futures, tasks, strict=True)}
     pending = set(futures)
     finished = as_completed(futures)

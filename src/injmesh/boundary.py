@@ -32,7 +32,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from . import _tolerances as tol
 from .errors import NodeBudgetError
@@ -245,6 +244,8 @@ class _TipGraded:
     c), h elsewhere."""
 
     def __init__(self, h: SizeFn, tips: FloatArray, kappa: FloatArray, r1: FloatArray, reach: FloatArray):
+        from scipy.spatial import cKDTree
+
         self.h, self.tips, self.kappa, self.r1, self.reach = h, tips, kappa, r1, reach
         self.tree = cKDTree(tips)
 
@@ -513,6 +514,8 @@ def _across(domain: Domain, p: FloatArray, spacing: FloatArray) -> FloatArray:
     The segment between the two must cross the domain (its midpoint inside by a tenth of its
     length): corners facing each other across a notch of the outside need nothing.
     """
+    from scipy.spatial import cKDTree
+
     k = min(ACROSS_NEIGHBOURS + 1, len(p))
     if k < 2:
         return spacing
@@ -650,6 +653,8 @@ def _split_encroached(
     towards the slit's tip (a coastline's 12-degree land spike: 18 boundary nodes within
     1.7 h of the tip, slivers of q 0.13 fanning to them).
     """
+    from scipy.spatial import cKDTree
+
     # A segment is tested again only where its answer can change.  Its nodes never move and
     # its diametral circle is fixed, so its set S of other nodes strictly inside the circle
     # changes only when a new node lands there.  The three nearest nodes the test reads are
@@ -808,6 +813,8 @@ def _nearest_segments(
     Segments more than ``4x`` the median length would make every ball large: they are measured
     against every point, in chunks.
     """
+    from scipy.spatial import cKDTree
+
     from .kernels.outline import points_in_balls
 
     m = len(q)
@@ -1015,6 +1022,8 @@ def mesh_curves(pieces: Sequence[Piece], h: SizeFn, diameter: float) -> CurveMes
     -------
     CurveMesh
     """
+    from scipy.spatial import cKDTree
+
     eps = 10 * tol.ON_BOUNDARY * diameter
     placed: list[tuple[FloatArray, NDArray[np.bool_], bool]] = []
     for piece in pieces:

@@ -78,7 +78,11 @@ Other choices the paper leaves open:
   place; a list that runs out of slots is rebuilt.  At the end the flips run everywhere.
 * **The step** is compiled (:mod:`injmesh.kernels.smooth`): the bars are node neighbour lists
   in CSR form built once per connectivity, and each node gathers its own bar forces in a fixed
-  order, so the result is bit-identical whatever the thread count (the kernels are serial).
+  order, so the result is bit-identical whatever the thread count.  On large node lists the
+  step's per-node kernels (forces, stability limit, the move) and the drift scan run over
+  consecutive chunks on a few threads (:mod:`injmesh.kernels.threads`; ``NUMBA_NUM_THREADS``
+  of them): each node's numbers are the serial ones, and the step's reductions (largest move,
+  counts) are combined in chunk order with the serial loop's ties.
   Three quantities are computed per connectivity rather than per step:
 
   - ``ld = h(midpoint)`` of every bar, and hbar.  Between two updates no node drifts more than
@@ -141,7 +145,6 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from ._arrays import lower_wins
 from .geometry import Domain
@@ -464,7 +467,7 @@ class _Relaxation:
         self.hbar = hbar
         # The stability limit of each moving node's step (see kernels.smooth.stable_scale).
         self._damp = np.ones(len(p))
-        k.stable_scale(p, self._moving, indptr, adj, eid, ld, DT * hbar, STABLE_GAIN, self._damp)
+        k.threaded_stable_scale(p, self._moving, indptr, adj, eid, ld, DT * hbar, STABLE_GAIN, self._damp)
         if len(self._sl):
             b, bp, bn = self._sl.T
             self._ld_slide = (np.array(self.h(0.5 * (p[b] + p[bp])), dtype=np.float64),
@@ -616,10 +619,11 @@ class _Relaxation:
                 return False
             self.iterations += self.weight
             indptr, adj, eid, ld = self._csr
-            k.bar_forces(p, self._moving, indptr, adj, eid, ld, attraction, self._total, self._damp)
-            c, worst, at, drift, count = k.advance(p, self._free, self._total, self.hbar, DT, STEP_CAP,
-                                                   self._deep, self.anchor, self._cand, self._near,
-                                                   DPTOL)
+            k.threaded_bar_forces(p, self._moving, indptr, adj, eid, ld, attraction, self._total,
+                                  self._damp)
+            c, worst, at, drift, count = k.threaded_advance(
+                p, self._free, self._total, self.hbar, DT, STEP_CAP, self._deep, self.anchor,
+                self._cand, self._near, DPTOL)
             if c:
                 # Nodes near the boundary: a step that would leave the domain is not taken.
                 idx, new = self._near[:c], self._cand[:c]
@@ -1309,6 +1313,8 @@ def _conform(
     Nodes in ``pinned`` (boundary nodes added by recovery) never move.  ``interior`` segments
     (interior curves) are recovered too but do not bound the domain.
     """
+    from scipy.spatial import cKDTree
+
     count = 0
     required = walls if interior is None else np.concatenate([walls, interior])
     before = len(required) + 1
@@ -1387,6 +1393,8 @@ def _split_worthy(h: SizeFn, p: FloatArray, seg: IntArray, either_side: bool = F
                   alive: NDArray[np.bool_] | None = None) -> NDArray[np.bool_]:
     """Segments longer than ``SPLIT_MIN * h`` with a node inside their diametral circle on the
     domain's side (left of a -> b; on either side for an interior curve)."""
+    from scipy.spatial import cKDTree
+
     if len(seg) == 0:
         return np.zeros(0, dtype=bool)
     a, b = p[seg[:, 0]], p[seg[:, 1]]
@@ -1426,6 +1434,8 @@ def _recover_interfaces(
     no triangle (``smooth`` removes them).  Returns the points, triangles, segments, their
     curve, every node's curve and the number of triangulations.
     """
+    from scipy.spatial import cKDTree
+
     seg, group = itf.segments.copy(), itf.group.copy()
     node_group = np.zeros(len(p), dtype=np.intp)
     node_group[: len(itf.node_group)] = itf.node_group

@@ -10,8 +10,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from .. import _tolerances as tol
 from .base import BBox, Domain, FloatArray, GeometryError
@@ -186,6 +184,9 @@ def order_cycles(succ: np.ndarray) -> list[np.ndarray]:
     Vectorised list ranking (pointer doubling), so no Python loop runs over the vertices.
     Cycles come largest first.
     """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
     n = len(succ)
     ok = succ >= 0
     idx = np.arange(n)

@@ -7,8 +7,10 @@ entry belongs to, so that per-bar quantities (the desired length ``ld``) are sto
 
 A step gathers, for each moving node, the bar forces of its own row: no scatter-add, no two
 threads writing the same node, and a fixed summation order (the row order), so the result is
-bit-identical from run to run.  The kernels are serial: at 1e6 nodes a step takes a few
-hundredths of a second, and the rest of Step 3 is not threaded either.
+bit-identical from run to run.  The step's three per-node kernels release the GIL, and
+``threaded_bar_forces``, ``threaded_stable_scale`` and ``threaded_advance`` run them over
+consecutive chunks of a large node list at once (:mod:`injmesh.kernels.threads`): each node's
+numbers are the serial ones, whatever the number of threads.
 
 Examples
 --------
@@ -27,6 +29,8 @@ import math
 
 import numpy as np
 from numba import njit
+
+from . import threads
 
 
 @njit(cache=True, inline="always")
@@ -187,7 +191,7 @@ def mean_bar_size(indptr, eid, ld):  # type: ignore[no-untyped-def]
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total, damp):  # type: ignore[no-untyped-def]
     """Sum of the bar forces on each node of ``nodes``, times ``damp[node]``, written to
     ``total[node]``.
@@ -221,7 +225,7 @@ def bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total, damp):  # type
         total[i, 1] = fy * damp[i]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def stable_scale(p, nodes, indptr, adj, eid, ld, step, gain, out):  # type: ignore[no-untyped-def]
     """The stability limit of the Euler step of each node of ``nodes``, written to ``out``.
 
@@ -256,7 +260,7 @@ def stable_scale(p, nodes, indptr, adj, eid, ld, step, gain, out):  # type: igno
         out[i] = gain / g if g > gain else 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near, tol):  # type: ignore[no-untyped-def]
     """Euler step (2.4) of the free nodes: ``p_i += dt * hbar_i * total_i``, the step clamped to
     ``step_cap * hbar_i``.
@@ -558,30 +562,77 @@ def changed_rows(a, b):  # type: ignore[no-untyped-def]
     return out[:k]
 
 
-@njit(cache=True)
-def drifted(p, anchor, hbar, tol, tri):  # type: ignore[no-untyped-def]
-    """The nodes that moved more than ``tol * hbar`` from their anchors, and the rows of
-    ``tri`` (int32) that use one of them: where a connectivity update starts its flips."""
-    n = p.shape[0]
-    mark = np.zeros(n, dtype=np.bool_)
-    count = 0
-    for i in range(n):
-        if _norm(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) > tol * hbar[i]:
-            mark[i] = True
-            count += 1
-    moved = np.empty(count, dtype=np.int64)
-    k = 0
-    for i in range(n):
-        if mark[i]:
-            moved[k] = i
-            k += 1
+@njit(cache=True, nogil=True)
+def _mark_drifted(p, anchor, hbar, tol, mark):  # type: ignore[no-untyped-def]
+    for i in range(p.shape[0]):
+        mark[i] = _norm(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) > tol * hbar[i]
+
+
+@njit(cache=True, nogil=True)
+def _rows_using(tri, mark, first):  # type: ignore[no-untyped-def]
     rows = np.empty(tri.shape[0], dtype=np.int32)
     r = 0
     for t in range(tri.shape[0]):
         if mark[tri[t, 0]] or mark[tri[t, 1]] or mark[tri[t, 2]]:
-            rows[r] = t
+            rows[r] = first + t
             r += 1
-    return moved, rows[:r]
+    return rows[:r]
+
+
+def drifted(p, anchor, hbar, tol, tri):  # type: ignore[no-untyped-def]
+    """The nodes that moved more than ``tol * hbar`` from their anchors, and the rows of
+    ``tri`` (int32) that use one of them: where a connectivity update starts its flips.
+
+    Both scans (nodes, then triangles) run over chunks on several threads; the lists come
+    out in increasing order, as from one loop.
+    """
+    mark = np.empty(len(p), dtype=np.bool_)
+    threads.each(len(p), lambda lo, hi: _mark_drifted(p[lo:hi], anchor[lo:hi], hbar[lo:hi], tol,
+                                                      mark[lo:hi]))
+    rows = threads.each(len(tri), lambda lo, hi: _rows_using(tri[lo:hi], mark, lo))
+    return np.flatnonzero(mark), (rows[0] if len(rows) == 1 else np.concatenate(rows))
+
+
+def threaded_bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total, damp):  # type: ignore[no-untyped-def]
+    """:func:`bar_forces` over chunks of ``nodes`` on several threads (same numbers)."""
+    if not threads.worth(len(nodes)):  # a small mesh: no ~8 us of hand-off per call
+        bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total, damp)
+        return
+    threads.each(len(nodes), lambda lo, hi: bar_forces(p, nodes[lo:hi], indptr, adj, eid, ld,
+                                                      attraction, total, damp))
+
+
+def threaded_stable_scale(p, nodes, indptr, adj, eid, ld, step, gain, out):  # type: ignore[no-untyped-def]
+    """:func:`stable_scale` over chunks of ``nodes`` on several threads (same numbers)."""
+    if not threads.worth(len(nodes)):
+        stable_scale(p, nodes, indptr, adj, eid, ld, step, gain, out)
+        return
+    threads.each(len(nodes), lambda lo, hi: stable_scale(p, nodes[lo:hi], indptr, adj, eid, ld,
+                                                        step, gain, out))
+
+
+def threaded_advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near, tol):  # type: ignore[no-untyped-def]
+    """:func:`advance` over chunks of ``free`` on several threads, with its serial result.
+
+    Chunk k writes its candidates to ``cand[lo:]``/``near[lo:]`` of its own range; they are
+    moved down in chunk order, and the largest move keeps the serial loop's tie (the first
+    node), so the result is the serial one.
+    """
+    if not threads.worth(len(free)):
+        return advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near, tol)
+    parts = threads.each(len(free), lambda lo, hi: (lo, advance(
+        p, free[lo:hi], total, hbar, dt, step_cap, deep, anchor, cand[lo:], near[lo:], tol)))
+    c, worst, at, drift, count = 0, -1.0, -1, 0.0, 0
+    for lo, (ck, wk, ak, dk, nk) in parts:
+        if ck and lo != c:
+            cand[c:c + ck] = cand[lo:lo + ck]
+            near[c:c + ck] = near[lo:lo + ck]
+        c += ck
+        if wk > worst:
+            worst, at = wk, ak
+        drift = max(drift, dk)
+        count += nk
+    return c, worst, at, drift, count
 
 
 # --- the quality pass (smoothing._optimize) -------------------------------------------------
