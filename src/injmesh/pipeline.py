@@ -904,22 +904,27 @@ def _region_tags(
     from scipy.sparse.csgraph import connected_components
 
     m = len(tri)
-    centroid_tag = cons.region_of(points[tri].mean(axis=1))
     if m == 0 or not cons.regions:
         return np.zeros(m, dtype=np.intp)
+    centroid_tag = cons.region_of((points[tri[:, 0]] + points[tri[:, 1]] + points[tri[:, 2]]) / 3.0)
+    from .kernels.mesh import neighbours, signed_areas
+
     n = len(points)
-    u, v = tri.ravel(), tri[:, [1, 2, 0]].ravel()
+    # Each interior edge once (from its lower triangle), joined unless it is a curve segment
+    # (found by binary search among the segments' keys: no sort of the mesh's edges).
+    nbr = neighbours(np.ascontiguousarray(tri, dtype=np.int64), n)
+    t, k = np.nonzero(nbr > np.arange(m)[:, None])
+    u, v = tri[t, (k + 1) % 3], tri[t, (k + 2) % 3]
     key = np.minimum(u, v).astype(np.int64) * n + np.maximum(u, v)
-    barrier = np.isin(key, np.sort(seg, axis=1) @ np.array([n, 1], dtype=np.int64)) if len(seg) else \
-        np.zeros(len(key), dtype=bool)
-    owner = np.repeat(np.arange(m), 3)
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
-    same = np.flatnonzero((ks[1:] == ks[:-1]) & ~barrier[order[1:]])
-    graph = coo_matrix((np.ones(len(same)), (owner[order[same]], owner[order[same + 1]])), shape=(m, m))
+    join = np.ones(len(key), dtype=bool)
+    if len(seg):
+        barrier = np.sort(np.sort(seg, axis=1).astype(np.int64) @ np.array([n, 1], dtype=np.int64))
+        pos = np.minimum(np.searchsorted(barrier, key), len(barrier) - 1)
+        join = barrier[pos] != key
+    graph = coo_matrix((np.ones(int(join.sum())), (t[join], nbr[t[join], k[join]])), shape=(m, m))
     _, label = connected_components(graph, directed=False)
-    e1, e2 = points[tri[:, 1]] - points[tri[:, 0]], points[tri[:, 2]] - points[tri[:, 0]]
-    area = np.abs(0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]))
+    area = np.abs(signed_areas(np.ascontiguousarray(points, dtype=np.float64),
+                               np.ascontiguousarray(tri, dtype=np.int64)))
     r = len(cons.regions) + 1
     votes = np.bincount(label * r + centroid_tag, weights=area, minlength=(label.max() + 1) * r)
     winner = np.argmax(votes.reshape(-1, r), axis=1)
