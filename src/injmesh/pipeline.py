@@ -788,13 +788,24 @@ def _injection_with_curves(
         k = k[~cm.fixed[chain[k]]]
         rows.append(np.stack([g[k], g[(k - 1) % len(g)], g[(k + 1) % len(g)]], axis=1))
     node_group[ids[~on_b]] = cm.node_piece[~on_b] + 1
-    pieces = cons.pieces
+    # Pieces of one region share its projection: one call per region (or curve) in a step,
+    # none of the grouping when there is only one (a single inclusion).
+    projectors: list[Callable[[FloatArray], FloatArray]] = []
+    which = np.empty(len(cons.pieces), dtype=np.intp)
+    for k, piece in enumerate(cons.pieces):
+        same = [i for i, f in enumerate(projectors) if f == piece.project]
+        if not same:
+            projectors.append(piece.project)
+        which[k] = same[0] if same else len(projectors) - 1
 
     def project(q: FloatArray, group: NDArray[np.intp]) -> FloatArray:
+        if len(projectors) == 1:
+            return projectors[0](q)
+        pid = which[group - 1]
         out = np.empty_like(q)
-        for gi in np.unique(group).tolist():
-            sel = group == gi
-            out[sel] = pieces[gi - 1].project(q[sel])
+        for i in np.unique(pid).tolist():
+            sel = pid == i
+            out[sel] = projectors[i](q[sel])
         return out
 
     itf = Interfaces(ids[cm.edges], cm.edge_piece + 1, node_group, project)

@@ -96,6 +96,7 @@ def thinnest_chords(v, prv, seg, seg_len, v_n, seg_n, wall, radius, cos):  # typ
     x0, y0 = v[:, 0].min(), v[:, 1].min()
     nx = int((v[:, 0].max() - x0) / size) + 1
     ny = int((v[:, 1].max() - y0) / size) + 1
+    slack = 2.0 * seg_len.max()
     everyone, first_all = _grid(v, np.arange(n), size, x0, y0, nx, ny)
     walls, first_wall = _grid(v, inner, size, x0, y0, nx, ny)
     for i in range(n):
@@ -122,8 +123,16 @@ def thinnest_chords(v, prv, seg, seg_len, v_n, seg_n, wall, radius, cos):  # typ
                     lim = max(radius[i], radius[j]) if wall[i] else r
                     if not d2 <= lim * lim or d2 > look * look and wall[i]:
                         continue
+                    # A foot on a segment at b lies within the longest segment L of b, so a
+                    # partner whose direction from a makes e . n_a <= cos impossible (b's offset
+                    # along n_a at most cos |ab| - 2 L) is not judged: the same answers.
+                    d = math.sqrt(d2)
+                    fwd = dx * v_n[i, 0] + dy * v_n[i, 1] > cos * d - slack
+                    bwd = -dx * v_n[j, 0] - dy * v_n[j, 1] > cos * d - slack
                     # Both ways round, both segments at the partner (a's own two excluded).
                     for q in range(4):
+                        if not (fwd if q < 2 else bwd):
+                            continue
                         a, b = (i, j) if q < 2 else (j, i)
                         s = b if q % 2 == 0 else prv[b]
                         if s == a or s == prv[a]:
