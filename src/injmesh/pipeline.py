@@ -792,11 +792,11 @@ def _injection_with_curves(
     # none of the grouping when there is only one (a single inclusion).
     projectors: list[Callable[[FloatArray], FloatArray]] = []
     which = np.empty(len(cons.pieces), dtype=np.intp)
-    for k, piece in enumerate(cons.pieces):
+    for j, piece in enumerate(cons.pieces):
         same = [i for i, f in enumerate(projectors) if f == piece.project]
         if not same:
             projectors.append(piece.project)
-        which[k] = same[0] if same else len(projectors) - 1
+        which[j] = same[0] if same else len(projectors) - 1
 
     def project(q: FloatArray, group: NDArray[np.intp]) -> FloatArray:
         if len(projectors) == 1:
