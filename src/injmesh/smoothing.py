@@ -1492,13 +1492,18 @@ def _without_nodes(p: FloatArray, tri: IntArray, drop: IntArray) -> IntArray | N
     side among their edges (the incoming mesh is not Delaunay everywhere after a boundary
     segment's recovery by flips), else None.
     """
-    from .triangulation import inside_polygon
-
     if len(drop) > LOCAL_REMOVALS:
         return None
+    if len(drop) == 0:
+        return tri
+    # Only the dropped nodes' stars change: work on those rows (one pass over the mesh).
+    mark = np.zeros(len(p), dtype=bool)
+    mark[drop] = True
+    touch = mark[tri].any(axis=1)
+    rest, sub = tri[~touch], tri[touch]
     for v in drop.tolist():
-        rows = np.flatnonzero((tri == v).any(axis=1))
-        star = tri[rows]
+        rows = np.flatnonzero((sub == v).any(axis=1))
+        star = sub[rows]
         # Each star triangle (v, a, b) counter-clockwise gives the polygon side a -> b.
         k = np.argmax(star == v, axis=1)
         r = np.arange(len(star))
@@ -1508,15 +1513,24 @@ def _without_nodes(p: FloatArray, tri: IntArray, drop: IntArray) -> IntArray | N
         if deg < 3 or len(link) != deg or not np.array_equal(link, np.unique(b)):
             return None  # not a closed ring: v is on the hull of the mesh
         local = delaunay(p[link])
-        centroid = p[link][local].mean(axis=1)
-        inside = inside_polygon(centroid, p[a], p[b])
+        # The star is star-shaped from v: a centroid is inside it when it is inside one of
+        # its triangles (v, a, b), on the left of a -> b, b -> v and v -> a.
+        c = p[link][local].mean(axis=1)[:, None, :]
+        pv, pa, pb = p[v], p[a][None], p[b][None]
+        inside = (_left(c, pa, pb) & _left(c, pb, pv) & _left(c, pv, pa)).any(axis=1)
         new = link[local[inside]]
         if len(new) != deg - 2 or not _has_edges(new, np.stack([a, b], axis=1)).all():
             return None
-        keep = np.ones(len(tri), dtype=bool)
+        keep = np.ones(len(sub), dtype=bool)
         keep[rows] = False
-        tri = np.concatenate([tri[keep], new])
-    return tri
+        sub = np.concatenate([sub[keep], new])
+    return np.concatenate([rest, sub])
+
+
+def _left(c: FloatArray, s: FloatArray, e: FloatArray) -> NDArray[np.bool_]:
+    """Whether the points ``c`` lie strictly left of the lines ``s -> e`` (broadcast)."""
+    d = e - s
+    return np.asarray((d[..., 0] * (c[..., 1] - s[..., 1]) - d[..., 1] * (c[..., 0] - s[..., 0])) > 0)
 
 
 def _triangulate_alive(domain: Domain, p: FloatArray, walls: IntArray, alive: NDArray[np.bool_]) -> IntArray:
