@@ -1476,7 +1476,7 @@ def _recover_interfaces(
 
 
 #: :func:`_without_nodes` removes at most this many nodes one by one (each a pass over the
-#: triangles); more are left to a triangulation from scratch.
+#: rows of the dropped nodes' stars); more are left to a triangulation from scratch.
 LOCAL_REMOVALS = 32
 
 
@@ -1487,10 +1487,12 @@ def _without_nodes(p: FloatArray, tri: IntArray, drop: IntArray) -> IntArray | N
     Removing a vertex from a Delaunay triangulation changes only its star: the new triangles
     are those of the Delaunay triangulation of its neighbours that lie inside the star's
     polygon.  At 1e5 nodes with regions, the interfaces' recovery dropped 3 nodes and then
-    triangulated the mesh from scratch (0.17-0.25 s); this costs a pass over the triangles per
-    node.  The result is checked: ``deg - 2`` triangles filling the polygon, with every polygon
-    side among their edges (the incoming mesh is not Delaunay everywhere after a boundary
-    segment's recovery by flips), else None.
+    triangulated the mesh from scratch (0.17-0.25 s); this costs one pass over the triangles
+    (about 15 ms there).  The neighbours' triangulation is the exact kernel's; which of its
+    triangles lie inside the star is decided in floating point on their centroids, so the
+    result is checked: ``deg - 2`` triangles, with every polygon side among their edges (the
+    incoming mesh is not Delaunay everywhere after a boundary segment's recovery by flips),
+    else None.
     """
     if len(drop) > LOCAL_REMOVALS:
         return None
