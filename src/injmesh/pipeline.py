@@ -788,13 +788,24 @@ def _injection_with_curves(
         k = k[~cm.fixed[chain[k]]]
         rows.append(np.stack([g[k], g[(k - 1) % len(g)], g[(k + 1) % len(g)]], axis=1))
     node_group[ids[~on_b]] = cm.node_piece[~on_b] + 1
-    pieces = cons.pieces
+    # Pieces of one region share its projection: one call per region (or curve) in a step,
+    # none of the grouping when there is only one (a single inclusion).
+    projectors: list[Callable[[FloatArray], FloatArray]] = []
+    which = np.empty(len(cons.pieces), dtype=np.intp)
+    for j, piece in enumerate(cons.pieces):
+        same = [i for i, f in enumerate(projectors) if f == piece.project]
+        if not same:
+            projectors.append(piece.project)
+        which[j] = same[0] if same else len(projectors) - 1
 
     def project(q: FloatArray, group: NDArray[np.intp]) -> FloatArray:
+        if len(projectors) == 1:
+            return projectors[0](q)
+        pid = which[group - 1]
         out = np.empty_like(q)
-        for gi in np.unique(group).tolist():
-            sel = group == gi
-            out[sel] = pieces[gi - 1].project(q[sel])
+        for i in np.unique(pid).tolist():
+            sel = pid == i
+            out[sel] = projectors[i](q[sel])
         return out
 
     itf = Interfaces(ids[cm.edges], cm.edge_piece + 1, node_group, project)
@@ -904,22 +915,27 @@ def _region_tags(
     from scipy.sparse.csgraph import connected_components
 
     m = len(tri)
-    centroid_tag = cons.region_of(points[tri].mean(axis=1))
     if m == 0 or not cons.regions:
         return np.zeros(m, dtype=np.intp)
+    centroid_tag = cons.region_of((points[tri[:, 0]] + points[tri[:, 1]] + points[tri[:, 2]]) / 3.0)
+    from .kernels.mesh import neighbours, signed_areas
+
     n = len(points)
-    u, v = tri.ravel(), tri[:, [1, 2, 0]].ravel()
+    # Each interior edge once (from its lower triangle), joined unless it is a curve segment
+    # (found by binary search among the segments' keys: no sort of the mesh's edges).
+    nbr = neighbours(np.ascontiguousarray(tri, dtype=np.int64), n)
+    t, k = np.nonzero(nbr > np.arange(m)[:, None])
+    u, v = tri[t, (k + 1) % 3], tri[t, (k + 2) % 3]
     key = np.minimum(u, v).astype(np.int64) * n + np.maximum(u, v)
-    barrier = np.isin(key, np.sort(seg, axis=1) @ np.array([n, 1], dtype=np.int64)) if len(seg) else \
-        np.zeros(len(key), dtype=bool)
-    owner = np.repeat(np.arange(m), 3)
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
-    same = np.flatnonzero((ks[1:] == ks[:-1]) & ~barrier[order[1:]])
-    graph = coo_matrix((np.ones(len(same)), (owner[order[same]], owner[order[same + 1]])), shape=(m, m))
+    join = np.ones(len(key), dtype=bool)
+    if len(seg):
+        barrier = np.sort(np.sort(seg, axis=1).astype(np.int64) @ np.array([n, 1], dtype=np.int64))
+        pos = np.minimum(np.searchsorted(barrier, key), len(barrier) - 1)
+        join = barrier[pos] != key
+    graph = coo_matrix((np.ones(int(join.sum())), (t[join], nbr[t[join], k[join]])), shape=(m, m))
     _, label = connected_components(graph, directed=False)
-    e1, e2 = points[tri[:, 1]] - points[tri[:, 0]], points[tri[:, 2]] - points[tri[:, 0]]
-    area = np.abs(0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]))
+    area = np.abs(signed_areas(np.ascontiguousarray(points, dtype=np.float64),
+                               np.ascontiguousarray(tri, dtype=np.int64)))
     r = len(cons.regions) + 1
     votes = np.bincount(label * r + centroid_tag, weights=area, minlength=(label.max() + 1) * r)
     winner = np.argmax(votes.reshape(-1, r), axis=1)
@@ -973,15 +989,25 @@ def _region_features(domain: Domain, h: SizeFunction, cons: Constraints, layers:
     of the mesh just as a strait is: measured on the paper's cases, an inclusion one h from the
     boundary gave q_min 0.61 without this.  The domain's own feature size and the gradation
     limit are applied afterwards, as without regions.
+
+    When every part (each region, and the domain minus the regions) has an exact boundary, the
+    thin parts are measured on the boundary polylines alone (:func:`_gap_cones`): no feature
+    grid per part (each cost ~30-60 ms on the paper's cases, most of the cost of regions
+    there).  Otherwise each part's feature size comes from its own feature grid
+    (:func:`~injmesh.sizing.features.thin_feature_size`).
     """
+    from .sizing.background import exact_boundary
     from .sizing.features import thin_feature_size
 
     rest: Domain = domain
     for r in cons.regions:
         rest = rest - r
+    parts = (*cons.regions, rest)
+    if all(exact_boundary(part) is not None for part in parts):
+        return _gap_cones(domain, h, parts, float(layers))
     # A part on which no two walls face each other within a few h (a circle several h across)
     # needs no feature grid: it would change nothing, and costs ~50 ms per part.
-    sizes = [thin_feature_size(part, h, float(layers)) for part in (*cons.regions, rest)]
+    sizes = [thin_feature_size(part, h, float(layers)) for part in parts]
     if all(fs is None for fs in sizes):
         return h
     lowered = _LowerInParts(h, list(cons.regions), sizes, float(layers))
@@ -996,6 +1022,143 @@ def _region_features(domain: Domain, h: SizeFunction, cons: Constraints, layers:
         if len(q) and np.any(lowered(q) < h(q) * (1 - 1e-12)):
             return as_size_function(lowered)
     return h
+
+
+#: Points sampled along each chord between facing walls (:func:`_gap_cones`); between two of
+#: them the cones' minimum is at most ``rate * chord / (2 (GAP_SAMPLES - 1))`` above the gap.
+GAP_SAMPLES = 9
+
+
+def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Domain, ...], layers: float) -> SizeFunction:
+    """h lowered where a region's wall and another wall of the same part face each other closer
+    than about ``layers * h``.
+
+    Each part's exact boundary is sampled every ``s = min(h_min / CELLS_PER_H, diameter /
+    FEATURE_CELLS)`` (the spacing a feature grid would have).  For every vertex a, the compiled
+    search (:func:`~injmesh.kernels.gaps.thinnest_chords`) judges the segments of the same part
+    starting within ``r = PROBE_SLACK * layers * h + s`` (a's r or the partner's), one of the
+    two on a region's wall, as :func:`~injmesh.sizing.thick_everywhere` judges them: the foot f
+    of a on the segment, the direction e from a to f within ``corner_angle + FACING_SLACK`` of
+    a's inward normal and of the segment's outward one.  Across such a chord the part is about
+    ``w = |f - a| / cos(e, normal of a)`` thick (exact across a disc, every chord of which
+    faces; its shortest facing chord is 1.5 R); each vertex keeps its thinnest chord.  The
+    result is ``min(h, min_c (w_c / layers + (2 / layers) |p - c|))`` over points c sampled
+    along the chords (``GAP_SAMPLES`` each): ``w / layers`` across the gap, growing back at the
+    feature size's own slope (2) over ``layers`` (the gradation limit then smooths it),
+    computed as the corner cap's cones are (:func:`~injmesh.kernels.outline.corner_cones`).
+    The width is floored at two spacings, as the feature grid's is, so a wedge's tip (a region
+    touching the boundary at an angle) does not ask for vanishing elements.
+
+    Chords with both ends on the domain's own boundary are never looked at: the domain's own
+    thin parts are the feature size's (:func:`_target_size`), as without regions.  A chord
+    whose h is more than ``PROBE_SLACK`` times its ends' somewhere along it may be missed.  h
+    is returned unchanged when no cone is below it.
+    """
+    from .kernels.gaps import thinnest_chords
+    from .sizing.background import CELLS_PER_H, densify, exact_boundary, probe_min
+    from .sizing.features import FACING_SLACK, FEATURE_CELLS, PROBE_SLACK, wall_frames
+
+    corner_angle = 30.0  # effective_size's default
+    diam = float(domain.diameter)
+    lo = min(h.constant, diam) if h.constant is not None else probe_min(h, domain)
+    step = min(lo / CELLS_PER_H, diam / FEATURE_CELLS)
+    cos = math.cos(math.radians(min(corner_angle + FACING_SLACK, 89.0)))
+    eps = tol.ON_BOUNDARY * diam
+    hr = h.restricted(domain)
+    starts, feet, widths = [], [], []
+    for part in parts:
+        brep = exact_boundary(part)
+        assert brep is not None
+        loops = [densify(np.asarray(lp, dtype=np.float64), step) for lp in brep.boundary_loops(step)
+                 if len(lp) >= 2]
+        if not loops:
+            continue
+        sizes = np.array([len(lp) for lp in loops])
+        v = np.concatenate(loops)
+        first = np.repeat(np.cumsum(sizes) - sizes, sizes)
+        local = np.arange(len(v)) - first
+        nxt = first + (local + 1) % np.repeat(sizes, sizes)
+        prv = first + (local - 1) % np.repeat(sizes, sizes)
+        seg, seg_len, v_n, seg_n = wall_frames(v, nxt, prv)
+        # Region walls: the vertices off the domain's boundary.
+        wall = np.abs(domain.sdf(v)) > eps
+        if not wall.any():
+            continue
+        radius = PROBE_SLACK * layers * hr(v) + 2.0 * step
+        w, foot = thinnest_chords(v, prv, seg, seg_len, v_n, seg_n, wall, radius, cos)
+        keep = w < radius
+        starts.append(v[keep])
+        feet.append(foot[keep])
+        widths.append(w[keep])
+    a, f, w = (np.concatenate(x) if x else np.empty((0, 2)) for x in (starts, feet, widths))
+    own = (np.abs(domain.sdf(a)) <= eps) & (np.abs(domain.sdf(f)) <= eps) if len(a) else \
+        np.zeros(0, dtype=bool)
+    a, f, w = a[~own], f[~own], w.ravel()[~own]
+    if not len(a):
+        return h
+    t = np.linspace(0.0, 1.0, GAP_SAMPLES)
+    c = (a[:, None, :] + t[None, :, None] * (f - a)[:, None, :]).reshape(-1, 2)
+    apex = np.repeat(np.maximum(w, 2.0 * step) / layers, GAP_SAMPLES)
+    low = apex < hr(c) * (1.0 - 1e-9)
+    if not low.any():
+        return h
+    c, apex = _thinned(c[low], apex[low], 2.0 / layers)
+    return SizeFunction(_Cones(h, c, apex, 2.0 / layers))
+
+
+#: :func:`_thinned` keeps one cone per cell ``apex / CONE_THIN`` wide among cones of about the
+#: same apex (within a factor ``2 ** (1 / CONE_THIN)``).
+CONE_THIN = 8
+
+
+def _thinned(centres: FloatArray, apex: FloatArray, rate: float) -> tuple[FloatArray, FloatArray]:
+    """The lowest cone of each cell of a grid ``apex / CONE_THIN`` wide, per band of apexes.
+
+    The chords across a disc all pass near its centre: thousands of cones of one apex in a
+    few cells, each costing the cones' index as much as a distinct one.  A cone dropped for a
+    lower one at most a cell's diagonal away raises the minimum by at most ``rate`` times that
+    (``sqrt(2) / CONE_THIN`` of its apex, with ``rate = 1``: two layers).
+    """
+    band = np.floor(np.log2(apex) * CONE_THIN)
+    cell = np.exp2(band / CONE_THIN) / CONE_THIN
+    ix = np.floor(centres[:, 0] / cell)
+    iy = np.floor(centres[:, 1] / cell)
+    order = np.lexsort((apex, iy, ix, band))
+    key = np.stack([band, ix, iy], axis=1)[order]
+    first = np.r_[True, np.any(key[1:] != key[:-1], axis=1)]
+    pick = np.sort(order[first])
+    return centres[pick], apex[pick]
+
+
+class _Cones:
+    """``min(h(p), min_c (s_c + rate |p - c|))`` over the points c (the brute-force minimum bit
+    for bit, :func:`~injmesh.kernels.outline.corner_cones`)."""
+
+    def __init__(self, h: SizeFunction, centres: FloatArray, apex: FloatArray, rate: float) -> None:
+        from .boundary import CONE_CELLS, CONE_LEAF
+        from .kernels.outline import cone_index
+
+        self.h, self.rate = h, rate
+        centres = np.ascontiguousarray(centres, dtype=np.float64)
+        apex = np.ascontiguousarray(apex, dtype=np.float64)
+        # Meaningful anywhere when h is (a uniform size): see sizing.features.unrestricted.
+        self.everywhere = h.constant is not None
+        h_max = float(np.max(h(centres)))
+        reach = (h_max - float(apex.min())) / rate
+        extent = float(np.ptp(centres, axis=0).max())
+        margin = min(reach, extent) if extent > 0.0 else reach
+        self.index = cone_index(centres, apex, float(rate), CONE_LEAF, margin, CONE_CELLS * len(centres),
+                                h_max)
+
+    def __call__(self, p: FloatArray) -> FloatArray:
+        from .kernels.outline import corner_cones
+
+        hp = self.h(p)
+        if len(p) == 0:
+            return hp
+        out: FloatArray = corner_cones(np.ascontiguousarray(p, dtype=np.float64),
+                                       np.ascontiguousarray(hp, dtype=np.float64), self.index)
+        return out
 
 
 class _LowerInParts:

@@ -22,6 +22,8 @@ its algorithm (no NumPy twin) and is deterministic: same inputs, bit-identical o
   that can hold the minimum).
 * :mod:`injmesh.kernels.raster` -- inside/outside of background grid nodes by scanlines over
   an exact boundary.
+* :mod:`injmesh.kernels.gaps` -- the thinnest chord from each vertex of a region's wall to a
+  facing wall (the regions' feature size).
 
 Every kernel is ``@njit(cache=True)``: the first call compiles (tens of seconds for the whole
 Delaunay module on a cold cache) and later processes load the machine code from
