@@ -170,7 +170,7 @@ def mesh_boundary(
         raise GeometryError("the domain has no boundary inside its bounding box")
     loops = _drop_tiny(order_loops(loops), h)
 
-    corners = np.concatenate([domain.corners(), _resolved_vertices(domain, h)])
+    corners = np.concatenate([domain.corners(), _resolved_vertices(domain, h), _tip_walls(domain, h)])
     if len(fixed_points):
         dfix = domain.sdf(fixed_points)
         if np.any(dfix > on):
@@ -290,6 +290,128 @@ def _tip_graded(domain: Domain, h: SizeFn) -> SizeFn:
     return _TipGraded(h, tips, kappa, r1, reach)
 
 
+@dataclass(frozen=True)
+class _ShortTips:
+    """Sharp corners between two straight walls whose shorter wall (or half of a wall shared
+    with another sharp corner) is shorter than the tip's grading reaches (see
+    :func:`_tip_walls`)."""
+
+    tips: FloatArray  # (k, 2)
+    units: tuple[FloatArray, FloatArray]  # (k, 2) each: unit vectors along the two walls
+    room: tuple[FloatArray, FloatArray]  # (k,) each: wall length, or half of a shared wall
+    shared: tuple[NDArray[np.bool_], NDArray[np.bool_]]  # wall ends at another sharp corner
+    ends: tuple[FloatArray, FloatArray]  # (k, 2) each: the walls' far ends
+    g: FloatArray  # grading factor 1 + 2 sin(a / 2)
+    short: FloatArray  # the shorter room
+    ht: FloatArray  # h at the tip
+
+
+def _short_tips(domain: Domain, h: SizeFn) -> _ShortTips | None:
+    brep = _exact_brep(domain)
+    if brep is None:
+        return None
+    pts, turn, before, after = brep.junctions()
+    angle = 180.0 - turn
+    sharp = np.flatnonzero(angle < SHARP_CORNER)
+    if len(sharp) == 0:
+        return None
+    start = brep.loop_start
+    loop = np.searchsorted(start, sharp, side="right") - 1
+    lo, hi = start[loop], start[loop + 1]
+    # Junction i ends piece i and starts the next one: its walls end at junctions i -/+ 1.
+    prev = np.where(sharp == lo, hi - 1, sharp - 1)
+    nxt = np.where(sharp == hi - 1, lo, sharp + 1)
+    tips = pts[sharp]
+    ends = (pts[prev], pts[nxt])
+    walls = (before[sharp], after[sharp])
+    straight = np.ones(len(sharp), dtype=bool)
+    for end, length in zip(ends, walls, strict=True):
+        chord = np.hypot(*(end - tips).T)
+        straight &= np.abs(chord - length) <= 1e-9 * length  # an arc is longer than its chord
+    # A wall between two sharp corners (a thin triangle) is shared: each corner lays nodes on
+    # its half only, and both put the same node at its midpoint when they reach it.
+    is_sharp = np.zeros(len(pts), dtype=bool)
+    is_sharp[sharp] = True
+    shared = (is_sharp[prev], is_sharp[nxt])
+    room = (np.where(shared[0], 0.5 * walls[0], walls[0]), np.where(shared[1], 0.5 * walls[1], walls[1]))
+    g = 1.0 + 2.0 * np.sin(0.5 * np.radians(angle[sharp]))
+    ht = h(tips)
+    short = np.minimum(room[0], room[1])
+    keep = np.flatnonzero(straight & (short < ht / np.log(g)))
+    if len(keep) == 0:
+        return None
+    units = tuple((e[keep] - tips[keep]) / w[keep, None] for e, w in zip(ends, walls, strict=True))
+    return _ShortTips(tips[keep], (units[0], units[1]), (room[0][keep], room[1][keep]),
+                      (shared[0][keep], shared[1][keep]), (ends[0][keep], ends[1][keep]),
+                      g[keep], short[keep], ht[keep])
+
+
+def _tip_walls(domain: Domain, h: SizeFn) -> FloatArray:
+    """Nodes held on both walls of a sharp corner whose shorter wall ends before the tip's
+    grading does, at the same distances from the tip.
+
+    :func:`_tip_graded` lays a corner's walls in whole h-lengths from the tip, which puts the
+    nodes of both walls at the same distances only while both walls go on (it grades up to
+    ``h(tip) / kappa``, 3-8 h for 20-7 degrees).  A spike or inlet shorter than that (a
+    coastline's, a fraction of h long) ends its shorter wall at a polygon vertex first: the
+    walls then got nodes at different distances (the longer wall's rounding and balancing,
+    then the encroachment splits of :func:`_split_encroached`, which halve each wall by its
+    own length), and the tip triangle was far from isosceles (an 11.8-degree coastline spike
+    of walls 0.13 and 0.16 h: q = 0.21 where the angle allows 0.37).
+
+    Here the shorter wall's length ``L`` sets the layout: nodes at ``L / g**k`` on both walls
+    (``g = 1 + 2 sin(a / 2)``, the grading factor of :func:`_tip_graded`, so the strip between
+    the walls is of nearly square trapezoids), k = 0, 1, ... down to the first at most
+    ``h(tip)``, which makes the isosceles tip triangle.  ``k = 0`` is the shorter wall's own
+    end, so it is added on the longer wall only, and only when that wall is longer by half a
+    step (else its end is nearly there).  A wall shared with another sharp corner counts
+    half its length, and its midpoint is the same node from both ends.  Only corners between
+    two straight pieces.  Beyond ``L`` the size is lowered by :func:`corner_spacing` (the
+    mouth there is a corner's spacing).
+
+    Returns
+    -------
+    (k, 2) array
+        Points on the walls, to be held fixed like corners.
+    """
+    st = _short_tips(domain, h)
+    if st is None:
+        return np.empty((0, 2))
+    out = []
+    for c in range(len(st.tips)):
+        r = [float(st.short[c])]
+        while r[-1] > st.ht[c] and len(r) < TIP_STEPS:
+            r.append(r[-1] / st.g[c])
+        for side in (0, 1):
+            wall = [st.tips[c] + rk * st.units[side][c] for rk in r]
+            if st.shared[side][c] and st.room[side][c] == st.short[c]:
+                wall[0] = 0.5 * (st.tips[c] + st.ends[side][c])  # the same bits from either end
+            elif not st.shared[side][c] and st.room[side][c] < st.short[c] * (1.0 + 0.5 * (st.g[c] - 1.0)):
+                # The wall's own end (the shorter wall's, or one within half a step of it)
+                # is a vertex already.
+                wall = wall[1:]
+            out.extend(wall)
+    return np.asarray(out, dtype=float).reshape(-1, 2)
+
+
+def _mouths(domain: Domain, h: SizeFn) -> tuple[FloatArray, FloatArray]:
+    """The mouths of the sharp corners :func:`_tip_walls` lays out: the point at the shorter
+    wall's length on the longer wall, and the width there (``2 L sin(a / 2)``).
+
+    Past the mouth the longer wall faces the shorter wall's end across that width: sized by
+    the wall's own h, its segments there made slivers with that vertex (q = 0.33 where the
+    tip allows 0.37, for a 12-degree spike 0.2 h long whose longer wall goes on 0.6 h).
+    """
+    st = _short_tips(domain, h)
+    if st is None:
+        return np.empty((0, 2)), np.empty(0)
+    longer = (st.room[1] > st.room[0])[:, None]
+    unit = np.where(longer, st.units[1], st.units[0])
+    return st.tips + st.short[:, None] * unit, st.short * (st.g - 1.0)
+
+
+#: Nodes laid on each wall of a sharp corner by :func:`_tip_walls`, at most.
+TIP_STEPS = 64
 #: Corners with an interior angle below this (degrees) are sharp: see :func:`_pin_wedges`.
 SHARP_CORNER = 25.0
 #: Nodes of a sharp corner's walls are held still where the walls are closer than this times h.
@@ -334,12 +456,14 @@ def _exact_brep(domain: Domain) -> BRep | None:
 
 def corner_spacing(domain: Domain, h: SizeFn) -> tuple[FloatArray, FloatArray]:
     """The junctions Step 1 holds fixed and, for each, the distance along the boundary to the
-    nearest other fixed junction of its loop.
+    nearest other fixed junction of its loop, or to one facing it across the domain if nearer.
 
     Fixed junctions are the corners (turning more than ``CORNER_ANGLE`` degrees) and the
     vertices :func:`_resolved_vertices` keeps.  A boundary segment cannot be longer than the
     stretch between two fixed nodes, so this distance is the longest segment Step 1 can lay
-    next to the corner.
+    next to the corner; across the domain (the mouth of an inlet or a spike, :func:`_across`)
+    it is the length of a mesh edge there.  The mouths of sharp corners shorter than their
+    grading (:func:`_mouths`) follow the junctions, with their width.
 
     Returns
     -------
@@ -374,7 +498,44 @@ def corner_spacing(domain: Domain, h: SizeFn) -> tuple[FloatArray, FloatArray]:
         out_s.append(np.minimum(gap, np.roll(gap, 1)))
     if not out_p:
         return np.empty((0, 2)), np.empty(0)
-    return np.concatenate(out_p), np.concatenate(out_s)
+    p, spacing = np.concatenate(out_p), np.concatenate(out_s)
+    mouth, width = _mouths(domain, h)
+    return np.concatenate([p, mouth]), np.concatenate([_across(domain, p, spacing), width])
+
+
+def _across(domain: Domain, p: FloatArray, spacing: FloatArray) -> FloatArray:
+    """``spacing`` lowered to the distance to a nearer fixed junction across the domain.
+
+    Two corners can be far apart along the boundary and close across the domain: the mouth
+    of a spike or an inlet narrower than h (a coastline's, a fraction of h wide and long), where
+    the boundary turns away on both sides.  The mouth's segment is then a mesh edge, and with
+    the boundary beyond it laid at h the triangles on it were slivers (q = 0.16 at an inlet
+    0.03 h wide; the feature size, whose grid is coarser than such a mouth, does not see it).
+    The segment between the two must cross the domain (its midpoint inside by a tenth of its
+    length): corners facing each other across a notch of the outside need nothing.
+    """
+    from scipy.spatial import cKDTree
+
+    k = min(ACROSS_NEIGHBOURS + 1, len(p))
+    if k < 2:
+        return spacing
+    dist, near = cKDTree(p).query(p, k=k)
+    dist, near = dist[:, 1:], near[:, 1:]
+    rows, cols = np.nonzero(dist < spacing[:, None] * (1.0 - 1e-9))
+    if len(rows) == 0:
+        return spacing
+    d = dist[rows, cols]
+    mid = 0.5 * (p[rows] + p[near[rows, cols]])
+    inside = domain.sdf(mid) < -ACROSS_DEPTH * d
+    out = spacing.copy()
+    np.minimum.at(out, rows[inside], d[inside])
+    return out
+
+
+#: :func:`_across` looks at this many nearest fixed junctions of each, and counts one whose
+#: segment's midpoint lies this far (a fraction of its length) inside the domain.
+ACROSS_NEIGHBOURS = 4
+ACROSS_DEPTH = 0.1
 
 
 class _CornerCap:
