@@ -354,3 +354,25 @@ def test_csg_projection_lands_on_the_boundary_near_corners(name: str) -> None:
         p = np.concatenate([p, c[rng.integers(0, len(c), 2000)] + rng.normal(scale=0.01, size=(2000, 2))])
     foot = g.project(p)
     assert np.abs(g.sdf(foot)).max() < 2e-6 * g.diameter
+
+
+def test_plain_projection_stacks_its_calls_to_d() -> None:
+    """A plain d is asked once for the points and both gradient offsets, then once per
+    Newton step (plus once for a stale gradient): its call, not its points, is the cost of a
+    Python d on the few hundred nodes that slide at each smoothing step."""
+    calls = []
+
+    def ellipse(p: np.ndarray) -> np.ndarray:  # not a distance: Newton steps, not one
+        calls.append(len(p))
+        return np.hypot(p[:, 0] / 2.0, p[:, 1]) - 1.0
+
+    domain = Implicit(ellipse, (-3, -2, 3, 2))
+    calls.clear()
+    rng = np.random.default_rng(5)
+    ang = rng.uniform(0, 2 * np.pi, 200)
+    p = np.stack([2.0 * np.cos(ang), np.sin(ang)], axis=1) * rng.uniform(0.8, 1.2, (200, 1))
+    q = domain.project(p)
+    assert np.abs(ellipse(q)).max() < 1e-9
+    assert calls[0] == 3 * len(p)  # d and both offsets at once
+    # After that, per Newton step one call for d and at most one (stacked) for a gradient.
+    assert len(calls) <= 1 + 2 * 8
