@@ -2,8 +2,9 @@
 
 Each case's mesh is hashed (SHA-256 of ``points.tobytes()`` and ``triangles.tobytes()``, first 16
 hex digits): the unit square and the 20:1 graded disc at 1e5 and 1e6 nodes (``scale.py``), the
-six paper cases on both paths (composed geometry, plain sdf), and the real outlines of
-``robustness.py``.  Run it on main, then on a branch, and compare the two JSON files::
+six paper cases on both paths (composed geometry, plain sdf), the same six with the circular
+inclusion of ``regions.py`` and a 1e4-node square with its two inclusions and crack, and the real
+outlines of ``robustness.py``.  Run it on main, then on a branch, and compare the two JSON files::
 
     PYTHONPATH=src python benchmarks/mesh_hashes.py main.json
     PYTHONPATH=src python benchmarks/mesh_hashes.py branch.json --compare main.json
@@ -25,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from regions import INCLUSIONS, SQUARE_CURVES, SQUARE_REGIONS  # noqa: E402
 from robustness import REAL_CASES, build_real  # noqa: E402
 from scale import size_function  # noqa: E402
 
@@ -44,6 +46,12 @@ def cases(small: bool) -> Iterator[tuple[str, Callable[[], Any]]]:
         yield f"{name}-geom", partial(injmesh.generate, case.geometry, case.size)
         yield f"{name}-sdf", partial(injmesh.generate, case.sdf, case.size, bbox=case.bbox,
                                      fixed_points=case.fixed_points)
+    for name, case in sorted(CASES.items()):
+        centre, radius = INCLUSIONS[name]
+        yield f"{name}-region", partial(injmesh.generate, case.geometry, case.size,
+                                        regions={"inclusion": injmesh.Circle(centre, radius)})
+    yield "square-1e4-regions", partial(injmesh.generate, square, size_function("square", 1e4),
+                                        regions=SQUARE_REGIONS, curves=SQUARE_CURVES)
     for name in REAL_CASES:
         def real(name: str = name) -> Any:
             _, (domain, size), *_ = build_real(name)

@@ -1056,7 +1056,7 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Domain, ...], layer
     """
     from .kernels.gaps import thinnest_chords
     from .sizing.background import CELLS_PER_H, densify, exact_boundary, probe_min
-    from .sizing.features import FACING_SLACK, FEATURE_CELLS, PROBE_SLACK, wall_frames
+    from .sizing.features import FACING_SLACK, FEATURE_CELLS, PROBE_SLACK, loop_frames
 
     corner_angle = 30.0  # effective_size's default
     diam = float(domain.diameter)
@@ -1073,13 +1073,7 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Domain, ...], layer
                  if len(lp) >= 2]
         if not loops:
             continue
-        sizes = np.array([len(lp) for lp in loops])
-        v = np.concatenate(loops)
-        first = np.repeat(np.cumsum(sizes) - sizes, sizes)
-        local = np.arange(len(v)) - first
-        nxt = first + (local + 1) % np.repeat(sizes, sizes)
-        prv = first + (local - 1) % np.repeat(sizes, sizes)
-        seg, seg_len, v_n, seg_n = wall_frames(v, nxt, prv)
+        v, _, prv, seg, seg_len, v_n, seg_n = loop_frames(loops)
         # Region walls: the vertices off the domain's boundary.
         wall = np.abs(domain.sdf(v)) > eps
         if not wall.any():

@@ -16,7 +16,7 @@ import math
 import numba as nb
 import numpy as np
 
-_TINY = np.finfo(np.float64).tiny
+from .outline import _judge
 
 
 @nb.njit(cache=True)
@@ -43,24 +43,15 @@ def _grid(v, pick, size, x0, y0, nx, ny):  # type: ignore[no-untyped-def]
 
 @nb.njit(cache=True)
 def _try(a, s, v, seg, seg_len, v_n, seg_n, cos, best_w, best_f):  # type: ignore[no-untyped-def]
-    """Vertex a against segment s (the facing test of ``outline._judge``); a facing pair whose
-    thickness ``dist / (e . n_a)`` is below a's best so far replaces it."""
-    abx, aby = seg[s, 0], seg[s, 1]
-    t = ((v[a, 0] - v[s, 0]) * abx + (v[a, 1] - v[s, 1]) * aby) / max(seg_len[s] * seg_len[s], _TINY)
-    t = min(max(t, 0.0), 1.0)
-    fx, fy = v[s, 0] + t * abx, v[s, 1] + t * aby
-    gx, gy = fx - v[a, 0], fy - v[a, 1]
-    dist = math.hypot(gx, gy)
-    if not dist > 0.0:
+    """Vertex a against segment s (``outline._judge``'s facing test, at any distance); a facing
+    pair whose thickness ``dist / (e . n_a)`` is below a's best so far replaces it."""
+    kind, fx, fy, dist = _judge(a, s, v, seg, seg_len, v_n, seg_n, np.inf, 0.0, cos)
+    if kind != 2:
         return
-    ex, ey = gx / dist, gy / dist
-    own = ex * v_n[a, 0] + ey * v_n[a, 1]
-    other = ex * seg_n[s, 0] + ey * seg_n[s, 1]
-    if own > cos and -other > cos:
-        w = dist / own
-        if w < best_w[a]:
-            best_w[a] = w
-            best_f[a, 0], best_f[a, 1] = fx, fy
+    w = dist / ((fx - v[a, 0]) / dist * v_n[a, 0] + (fy - v[a, 1]) / dist * v_n[a, 1])
+    if w < best_w[a]:
+        best_w[a] = w
+        best_f[a, 0], best_f[a, 1] = fx, fy
 
 
 @nb.njit(cache=True)

@@ -248,6 +248,21 @@ def _outline() -> Any:
     return outline
 
 
+def loop_frames(
+    loops: list[FloatArray],
+) -> tuple[FloatArray, NDArray[np.intp], NDArray[np.intp], FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Closed loops of vertices joined end to end, with each vertex's successor and
+    predecessor on its own loop and :func:`wall_frames`: ``v, nxt, prv, seg, seg_len, v_n,
+    seg_n``."""
+    sizes = np.array([len(lp) for lp in loops])
+    v = np.concatenate(loops)
+    first = np.repeat(np.cumsum(sizes) - sizes, sizes)
+    local = np.arange(len(v)) - first
+    nxt = first + (local + 1) % np.repeat(sizes, sizes)
+    prv = first + (local - 1) % np.repeat(sizes, sizes)
+    return (v, nxt, prv, *wall_frames(v, nxt, prv))
+
+
 def wall_frames(
     v: FloatArray, nxt: NDArray[np.intp], prv: NDArray[np.intp]
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -311,14 +326,7 @@ def thick_everywhere(domain: Domain, width: float, corner_angle: float,
     perimeter = sum(float(np.hypot(*(np.roll(lp, -1, axis=0) - lp).T).sum()) for lp in loops)
     if perimeter / step + sum(len(lp) for lp in loops) > THICK_MAX_VERTICES:
         return False
-    dense = [densify(loop, step) for loop in loops]
-    sizes = np.array([len(d) for d in dense])
-    v = np.concatenate(dense)
-    start = np.repeat(np.cumsum(sizes) - sizes, sizes)
-    local = np.arange(len(v)) - start
-    nxt = start + (local + 1) % np.repeat(sizes, sizes)
-    prv = start + (local - 1) % np.repeat(sizes, sizes)
-    seg, seg_len, v_n, seg_n = wall_frames(v, nxt, prv)
+    v, _, prv, seg, seg_len, v_n, seg_n = loop_frames([densify(loop, step) for loop in loops])
     cos = math.cos(math.radians(min(corner_angle + FACING_SLACK, 89.0)))
     walls = _outline()
 
