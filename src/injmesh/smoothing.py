@@ -589,7 +589,8 @@ class _Relaxation:
                 self._ld_slide[0][rows] = self.h(0.5 * (p[b] + p[bp]))
                 self._ld_slide[1][rows] = self.h(0.5 * (p[b] + p[bn]))
         near = k.ring_one(indptr, self._csr[1], nodes.astype(np.int64), self._mark)
-        k.stable_scale(p, near, indptr, self._csr[1], eid, ld, DT * self.hbar, STABLE_GAIN, self._damp)
+        k.threaded_stable_scale(p, near, indptr, self._csr[1], eid, ld, DT * self.hbar, STABLE_GAIN,
+                                self._damp)
         self._inside_depth(nodes[self._is_free[nodes]])
         self.anchor[nodes] = p[nodes]
         self.retriangulations += 1
@@ -1307,7 +1308,7 @@ def _conform(
 
     A segment is missing when a node lies in its diametral circle; such free nodes are pushed
     radially to 1.05 times the circle's radius and the nodes re-triangulated (at most
-    ``rounds`` times, and only while each round leaves fewer missing: a segment at a sharp
+    ``rounds`` times; a round is kept only if it leaves fewer missing: a segment at a sharp
     corner or across a notch stays missing however its neighbours are pushed, and each round
     re-triangulates the whole mesh, ~0.4 s at 1e5 nodes; ``_recover`` takes what is left).
     Nodes in ``pinned`` (boundary nodes added by recovery) never move.  ``interior`` segments
@@ -1317,12 +1318,10 @@ def _conform(
 
     count = 0
     required = walls if interior is None else np.concatenate([walls, interior])
-    before = len(required) + 1
+    miss = missing_walls(tri, required)
     for _ in range(rounds):
-        miss = missing_walls(tri, required)
-        if len(miss) == 0 or len(miss) >= before:
+        if len(miss) == 0:
             break
-        before = len(miss)
         a, b = p[miss[:, 0]], p[miss[:, 1]]
         mid, radius = 0.5 * (a + b), 0.5 * np.hypot(*(b - a).T)
         free = np.arange(n_fixed, len(p))
@@ -1331,15 +1330,21 @@ def _conform(
         if len(free) == 0:
             break
         tree = cKDTree(p[free])
-        p = p.copy()
+        pushed = p.copy()
         for c, r in zip(mid, radius, strict=True):
             inside = free[tree.query_ball_point(c, r)]
             if len(inside):
-                v = p[inside] - c
+                v = pushed[inside] - c
                 dist = np.maximum(np.hypot(*v.T), 1e-300)
-                p[inside] = c + v * (1.05 * r / dist)[:, None]
-        tri = triangulate(domain, p, walls)
+                pushed[inside] = c + v * (1.05 * r / dist)[:, None]
+        after = triangulate(domain, pushed, walls)
         count += 1
+        left = missing_walls(after, required)
+        if len(left) >= len(miss):
+            # The pushed nodes encroach other segments (a thin part): keep the mesh as it was,
+            # with fewer missing, for _recover.
+            break
+        p, tri, miss = pushed, after, left
     return p, tri, count
 
 
