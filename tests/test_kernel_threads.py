@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from injmesh import Circle, generate
+from injmesh import Circle, Rectangle, generate
 from injmesh.kernels import smooth as k
 from injmesh.kernels import threads
 from injmesh.smoothing import DT
@@ -185,3 +185,36 @@ def test_threaded_size_kernels_equal_serial(seed: int, n: int, chunks: int) -> N
         split = threaded_corner_cones(p, hp, index), threaded_bilinear(x, y, values, inv[0], inv[1], p)
     for a, b in zip(serial, split, strict=True):
         assert a.tobytes() == b.tobytes()
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 10**6), n=st.integers(16, 400), chunks=st.integers(2, 7))
+def test_threaded_signed_distance_equals_serial(seed: int, n: int, chunks: int) -> None:
+    # An outline's sdf splits its (Z-ordered) points into chunks whose first search starts
+    # from the root: the least distance and its sign do not depend on where a search starts.
+    # Points on vertices and edges (ties between pieces) included.
+    from injmesh import Polygon
+    from injmesh.kernels.brep import nearest, signed_distance
+
+    rng = np.random.default_rng(seed)
+    angles = np.sort(rng.uniform(0, 2 * np.pi, 12))
+    ring = np.column_stack([np.cos(angles), np.sin(angles)]) * rng.uniform(0.5, 1.0, (12, 1))
+    # A hole touching nothing, and a circle-minus-square: arcs and segments.
+    poly = Polygon(ring, holes=[0.2 * ring[::-1]])
+    origin, g = poly.kernel_data()
+    arcs = (Circle((0, 0), 0.9) - Rectangle((-0.1, -0.1), (0.3, 0.3))).exact_brep()
+    p = np.concatenate([rng.uniform(-1.2, 1.2, (n, 2)), ring, 0.2 * ring, 0.5 * (ring + np.roll(ring, 1, 0))])
+    q = np.ascontiguousarray(p - origin)
+    serial = nearest(q, g)[0]
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(threads, "MIN_CHUNK", 8)
+        mp.setattr(threads, "threads", lambda: chunks)
+        split = signed_distance(q, g)
+    assert serial.tobytes() == split.tobytes()
+    assert np.array_equal(poly.sdf(p), serial)
+    origin, g = arcs.kernel_data()
+    q = np.ascontiguousarray(p - origin)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(threads, "MIN_CHUNK", 8)
+        mp.setattr(threads, "threads", lambda: chunks)
+        assert signed_distance(q, g).tobytes() == nearest(q, g)[0].tobytes()
