@@ -566,6 +566,8 @@ class _Relaxation:
         bars (and so hbar around them), their inside flags and their anchors."""
         k, p = self._k, self.p
         indptr, _, eid, ld = self._csr
+        # The moved nodes and their neighbours: the ends of their bars.
+        near = k.ring_one(indptr, self._csr[1], nodes.astype(np.int64), self._mark)
         if getattr(self.h, "constant", None) is None and len(nodes):
             if len(self._seen) != len(ld):
                 self._seen = np.zeros(len(ld), dtype=np.bool_)
@@ -573,9 +575,7 @@ class _Relaxation:
             bars = self._bars[b]
             ld[b] = self.h(0.5 * (p[bars[:, 0]] + p[bars[:, 1]]))
             # hbar of the moved nodes and of their neighbours (whose bars these are too).
-            ends = np.zeros(len(p), dtype=bool)
-            ends[bars.ravel()] = True
-            k.mean_bar_size_of(indptr, eid, ld, np.flatnonzero(ends), self.hbar)
+            k.mean_bar_size_of(indptr, eid, ld, near, self.hbar)
         if len(self._sl) and len(nodes):
             # Only the boundary bars with a node in ``nodes`` changed (on a detailed outline
             # the sliding nodes are a fifth of the mesh, and h there is the costly corner cap).
@@ -588,7 +588,6 @@ class _Relaxation:
                 b, bp, bn = b[rows], bp[rows], bn[rows]
                 self._ld_slide[0][rows] = self.h(0.5 * (p[b] + p[bp]))
                 self._ld_slide[1][rows] = self.h(0.5 * (p[b] + p[bn]))
-        near = k.ring_one(indptr, self._csr[1], nodes.astype(np.int64), self._mark)
         k.threaded_stable_scale(p, near, indptr, self._csr[1], eid, ld, DT * self.hbar, STABLE_GAIN,
                                 self._damp)
         self._inside_depth(nodes[self._is_free[nodes]])
