@@ -108,8 +108,10 @@ Other choices the paper leaves open:
   to case (worst q_min over the paper's cases at h/2, h, 2h: 0.821, formerly 0.710).
 * **Boundary conformity.**  Delaunay keeps a boundary segment when no node lies in its
   diametral circle.  At the end, free nodes found in the circle of a missing segment are pushed
-  just outside it and the nodes re-triangulated; a segment still missing is split at its
-  projected midpoint (a new boundary node), repeatedly, until Delaunay keeps its halves.
+  just outside it and the nodes re-triangulated (kept only if fewer segments are then missing:
+  in a notch the pushed nodes can land in other segments' circles); a segment still missing is
+  split at its projected midpoint (a new boundary node), repeatedly, until Delaunay keeps its
+  halves, and what splitting cannot recover is recovered by flips.
   Triangles are kept or dropped by flood fill from the segments' sides
   (``triangulation.classify_by_walls``), so a triangle bridging a narrow notch is never kept.
   ``generate`` then checks the result (:mod:`injmesh.validate`).
