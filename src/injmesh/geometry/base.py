@@ -81,15 +81,20 @@ class Domain(ABC):
         return np.empty((0, 2))
 
     def gradient(self, p: FloatArray) -> FloatArray:
-        """Gradient of d by central differences, ``(n, 2)``."""
+        """Gradient of d by central differences, ``(n, 2)``.
+
+        The four offsets go to d in one call (d is evaluated point by point: the same values
+        as four calls, a quarter of a plain Python d's per-call cost)."""
         p = as_points(p)
+        n = len(p)
         eps = tol.GRADIENT_STEP * self.diameter
         dx = np.array([eps, 0.0])
         dy = np.array([0.0, eps])
+        d = self.sdf(np.concatenate([p + dx, p - dx, p + dy, p - dy]))
         return np.stack(
             [
-                (self.sdf(p + dx) - self.sdf(p - dx)) / (2 * eps),
-                (self.sdf(p + dy) - self.sdf(p - dy)) / (2 * eps),
+                (d[:n] - d[n:2 * n]) / (2 * eps),
+                (d[2 * n:3 * n] - d[3 * n:]) / (2 * eps),
             ],
             axis=1,
         )
