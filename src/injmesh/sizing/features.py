@@ -232,27 +232,50 @@ def thinnest_gap(domain: Domain, grid: Background, corner_angle: float,
     probe = 0.25 * grid.spacing * normal
     flip = domain.sdf(seg_a + probe) > domain.sdf(seg_a - probe)
     normal[flip] *= -1
+    width = GAP_WIDTHS * grid.spacing
+    cos = math.cos(math.radians(corner_angle))
+    arcs = _arc_positions(seg_a, seg_b, prev)
+    tree = cKDTree(seg_a)
+    # First every pair of vertices closer than the width, with a little slack in each test: a
+    # superset of the nearest neighbours' pairs below (each test is symmetric in v and u, so
+    # one order of each pair is enough).  Where none of them is a gap (a domain thin only at a
+    # few h, such as the paper's four-hole square), neither is any of those, and the answer
+    # costs a fraction of the neighbour search.
+    slack = 1e-9
+    pairs = tree.query_pairs(width * (1.0 + slack), output_type="ndarray")
+    v, u = pairs[:, 0], pairs[:, 1]
+    if not len(_gaps(domain, seg_a, normal, arcs, v, u, np.hypot(*(seg_a[u] - seg_a[v]).T), width, cos,
+                     slack)):
+        return np.inf
     k = min(GAP_NEIGHBOURS, len(seg_a))
-    dist, idx = cKDTree(seg_a).query(seg_a, k=k)
+    dist, idx = tree.query(seg_a, k=k)
     v = np.repeat(np.arange(len(seg_a)), k)
-    u, dist = idx.ravel(), dist.ravel()
-    keep = (dist > 0) & (dist < GAP_WIDTHS * grid.spacing)
+    gap = _gaps(domain, seg_a, normal, arcs, v, idx.ravel(), dist.ravel(), width, cos, 0.0)
+    return float(gap.min()) if len(gap) else np.inf
+
+
+def _gaps(domain: Domain, seg_a: FloatArray, normal: FloatArray,
+          arcs: tuple[NDArray[np.intp], FloatArray, FloatArray], v: NDArray[np.intp], u: NDArray[np.intp],
+          dist: FloatArray, width: float, cos: float, slack: float) -> FloatArray:
+    """The widths of the gaps :func:`thinnest_gap` counts among the vertex pairs ``(v, u)``
+    ``dist`` apart (each test loosened by ``slack``, relative)."""
+    keep = (dist > 0) & (dist < width * (1.0 + slack))
     v, u, dist = v[keep], u[keep], dist[keep]
     e = (seg_a[u] - seg_a[v]) / dist[:, None]
-    cos = math.cos(math.radians(corner_angle))
-    facing = (np.einsum("kj,kj->k", e, normal[v]) > cos) & (-np.einsum("kj,kj->k", e, normal[u]) > cos)
+    facing = ((np.einsum("kj,kj->k", e, normal[v]) > cos - slack)
+              & (-np.einsum("kj,kj->k", e, normal[u]) > cos - slack))
     v, u, dist = v[facing], u[facing], dist[facing]
     # Walls meeting at a nearby sharp corner are a wedge, not a gap: the boundary between v and
     # u must be long compared with the gap (around a lobe, a hole or a deep notch).
-    loop, along, total = _arc_positions(seg_a, seg_b, prev)
+    loop, along, total = arcs
     arc = np.abs(along[u] - along[v])
     arc = np.where(loop[u] == loop[v], np.minimum(arc, total[v] - arc), np.inf)
-    around = arc > GAP_DETOUR * dist
+    around = arc > GAP_DETOUR * dist * (1.0 - slack)
     v, u, dist = v[around], u[around], dist[around]
     if not len(v):
-        return np.inf
-    across = domain.sdf(0.5 * (seg_a[u] + seg_a[v])) < 0
-    return float(dist[across].min()) if across.any() else np.inf
+        return dist
+    out: FloatArray = dist[domain.sdf(0.5 * (seg_a[u] + seg_a[v])) < 0]
+    return out
 
 
 def _outline() -> Any:
