@@ -466,6 +466,10 @@ def _clean(
         and math.isfinite(float(min_feature)) and min_feature >= 0
     ):
         raise ValueError(f"min_feature must be a finite length >= 0, got {min_feature!r}")
+    if type(domain).cleaned is Domain.cleaned:
+        # The base class cleans nothing (a plain signed distance): no tolerance is needed, so
+        # h_min's estimate, a quadrature of h over the domain, is left out.
+        return domain, {}
     # A constant h (capped at the diameter, as the stages cap it) is its own minimum.
     if h.constant is not None:
         h_min = min(h.constant, domain.diameter)
