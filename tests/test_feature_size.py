@@ -570,6 +570,10 @@ def test_thinnest_gap_first_pass_answers_as_the_neighbour_search(monkeypatch) ->
         assert features.thinnest_gap(domain, grid, 30.0) == gap
         monkeypatch.setattr(features, "_gaps", real)
         assert np.isfinite(gap) == expect_finite
+        # A boundary of more vertices than GAP_FIRST_PASS_MAX skips the pass: the same answer.
+        monkeypatch.setattr(features, "GAP_FIRST_PASS_MAX", 0)
+        assert features.thinnest_gap(domain, grid, 30.0) == gap
+        monkeypatch.undo()
 
 
 def CASES_GEOMETRY(name: str):
