@@ -318,22 +318,34 @@ def _lower_wins_reference(keep, lo, hi):
 
 
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 60), k=st.integers(0, 200))
-def test_lower_wins_is_the_greedy_independent_set(seed: int, n: int, k: int) -> None:
-    from injmesh._arrays import lower_wins
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(3, 80), share=st.floats(0.0, 1.0))
+def test_star_independent_is_the_greedy_independent_set(seed: int, n: int, share: float) -> None:
+    # The quality pass moves an independent set of its candidates, best ranked first: the
+    # greedy set over the candidate pairs joined by a triangle side, found from the stars.
+    from injmesh.kernels.smooth import clear_stars, corners_by_node, star_independent
 
     rng = np.random.default_rng(seed)
-    keep = rng.random(n) < 0.7
-    a, b = rng.integers(0, n, (2, k))
-    ok = a != b
-    lo, hi = np.minimum(a, b)[ok], np.maximum(a, b)[ok]
-    got = lower_wins(keep, lo, hi)
-    assert got.tolist() == _lower_wins_reference(keep, lo, hi).tolist()
-    # An independent set of candidates, and maximal: every dropped candidate has a kept partner.
-    assert not np.any(got[lo] & got[hi])
-    assert np.all(got <= keep)
-    for v in np.flatnonzero(keep & ~got):
-        assert np.any(got[lo[hi == v]]) or np.any(got[hi[lo == v]])
+    p = rng.random((n, 2))
+    tri = delaunay(p).astype(np.int64)
+    start, corner = corners_by_node(tri, n)
+    order = rng.permutation(np.flatnonzero(rng.random(n) < share)).astype(np.int64)
+    rank = np.full(n, -1)
+    rank[order] = np.arange(len(order))
+    sides = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    sides = sides[(rank[sides] >= 0).all(axis=1)]
+    ra, rb = rank[sides[:, 0]], rank[sides[:, 1]]
+    want = _lower_wins_reference(np.ones(len(order), dtype=bool), np.minimum(ra, rb), np.maximum(ra, rb))
+    scratch = np.zeros(n, dtype=np.bool_)
+    got = star_independent(order, tri, start, corner, scratch)
+    assert got.tolist() == want.tolist()
+    assert not scratch.any()  # left zeroed for the next sweep
+    # clear_stars: every node of the kept nodes' triangles, and no other.
+    flags = np.ones(n, dtype=np.bool_)
+    clear_stars(order[got], tri, start, corner, flags)
+    touched = np.zeros(n, dtype=bool)
+    for v in order[got]:
+        touched[tri[(tri == v).any(axis=1)].ravel()] = True
+    assert np.array_equal(~flags, touched)
 
 
 def test_node_lists_follow_flips_in_place() -> None:

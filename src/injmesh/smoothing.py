@@ -148,7 +148,6 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from ._arrays import lower_wins
 from .geometry import Domain
 from .progress import Callback, report
 from .quality import triangle_quality
@@ -1597,7 +1596,15 @@ def _optimize(
     neighbour's move changes its star (the same trial would fail again, and it would keep
     its neighbours out of the independent set); a node moves at most ``OPTIMIZE_MOVES`` times.
     """
-    from .kernels.smooth import corners_by_node, restar, star_min, star_targets, star_trial
+    from .kernels.smooth import (
+        clear_stars,
+        corners_by_node,
+        restar,
+        star_independent,
+        star_min,
+        star_targets,
+        star_trial,
+    )
 
     reach = _inside_reach(domain)
     p = p.copy()
@@ -1613,12 +1620,7 @@ def _optimize(
     start, by_node = corners_by_node(t64, n)
     q = triangle_quality(p, tri)
     star = star_min(start, by_node, q)
-
-    def star_of(nodes: IntArray) -> NDArray[np.int64]:
-        """The triangles around each of ``nodes``, one row per corner, node by node."""
-        cnt = start[nodes + 1] - start[nodes]
-        offset = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-        return t64[by_node[np.repeat(start[nodes], cnt) + offset] // 3]
+    scratch = np.zeros(n, dtype=np.bool_)
 
     moves = np.zeros(n, dtype=np.intp)
     # Nodes whose last trial failed and whose star has not changed since: the same trial
@@ -1632,14 +1634,8 @@ def _optimize(
         # Independent set, worst stars first (ties by index).
         order = np.flatnonzero(cand)
         order = order[np.argsort(star[order], kind="stable")]
-        rank = np.full(n, -1, dtype=np.intp)
-        rank[order] = np.arange(len(order))
-        # Conflicts: the sides, between two candidates, of the candidates' triangles.
-        ct = star_of(order)
-        bars = np.concatenate([ct[:, [0, 1]], ct[:, [1, 2]], ct[:, [2, 0]]])
-        both = cand[bars[:, 0]] & cand[bars[:, 1]]
-        ra, rb = rank[bars[both, 0]], rank[bars[both, 1]]
-        move = order[lower_wins(np.ones(len(order), dtype=bool), np.minimum(ra, rb), np.maximum(ra, rb))]
+        # Conflicts: candidates joined by a side of a triangle; the better ranked one moves.
+        move = order[star_independent(order.astype(np.int64), t64, start, by_node, scratch)]
         target = star_targets(p, t64, start, by_node, move)
         on_bnd = on_boundary[move]
         # The depth of the free nodes, once per sweep: a trial step shorter than it (half of
@@ -1669,7 +1665,7 @@ def _optimize(
         moves[moved] += 1
         failed[move[~done]] = True
         # The moved nodes' triangles changed, and with them the stars of all their nodes.
-        failed[star_of(moved).ravel()] = False
+        clear_stars(moved.astype(np.int64), t64, start, by_node, failed)
         # q of the triangles that changed, and the stars of their nodes.
         restar(p, t64, start, by_node, q, star, moved)
     return p

@@ -416,38 +416,6 @@ def star_min(start, corner, q):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def lower_wins(keep, lo, hi):  # type: ignore[no-untyped-def]
-    """Greedy independent set in index order over conflict pairs ``(lo, hi)``, ``lo < hi``.
-
-    Candidates (``keep``) are taken in increasing index; one survives unless a lower-numbered
-    survivor conflicts with it.  The conflicts are filed under their higher index, so the
-    pass is linear in the candidates and pairs.
-    """
-    n = keep.shape[0]
-    start = np.zeros(n + 1, dtype=np.int64)
-    for k in range(hi.shape[0]):
-        start[hi[k] + 1] += 1
-    for i in range(n):
-        start[i + 1] += start[i]
-    fill = start[:-1].copy()
-    below = np.empty(hi.shape[0], dtype=np.int64)
-    for k in range(hi.shape[0]):
-        below[fill[hi[k]]] = lo[k]
-        fill[hi[k]] += 1
-    kept = np.zeros(n, dtype=np.bool_)
-    for v in range(n):
-        if not keep[v]:
-            continue
-        ok = True
-        for s in range(start[v], start[v + 1]):
-            if kept[below[s]]:
-                ok = False
-                break
-        kept[v] = ok
-    return kept
-
-
-@njit(cache=True)
 def row_bars(indptr, eid, nodes, seen):  # type: ignore[no-untyped-def]
     """The distinct bars in the CSR rows of ``nodes``, in order of first appearance.
 
@@ -648,6 +616,47 @@ def _q_of(ax, ay, bx, by, cx, cy):  # type: ignore[no-untyped-def]
     if den == 0.0 or not math.isfinite(den):
         return 0.0
     return (b + c - a) * (c + a - b) * (a + b - c) / den
+
+
+@njit(cache=True)
+def star_independent(order, tri, start, corner, scratch):  # type: ignore[no-untyped-def]
+    """Greedy independent set of the nodes ``order`` (ranked, best first) over the mesh's
+    edges: a node is taken unless a node of its triangles was taken before it.  Returns a mask
+    over ``order``; ``scratch`` is a zeroed flag per node, zeroed again on return.
+
+    The greedy set over the candidate pairs joined by a side of a triangle (only candidates
+    are ever taken, and two nodes of a triangle are joined by one of its sides), without
+    listing the pairs.
+    """
+    m = order.shape[0]
+    out = np.zeros(m, dtype=np.bool_)
+    for a in range(m):
+        v = order[a]
+        ok = True
+        for s in range(start[v], start[v + 1]):
+            t = corner[s] // 3
+            if scratch[tri[t, 0]] or scratch[tri[t, 1]] or scratch[tri[t, 2]]:
+                ok = False
+                break
+        if ok:
+            scratch[v] = True
+            out[a] = True
+    for a in range(m):
+        if out[a]:
+            scratch[order[a]] = False
+    return out
+
+
+@njit(cache=True)
+def clear_stars(nodes, tri, start, corner, flags):  # type: ignore[no-untyped-def]
+    """``flags`` False at every node of the triangles around each of ``nodes``."""
+    for a in range(nodes.shape[0]):
+        v = nodes[a]
+        for s in range(start[v], start[v + 1]):
+            t = corner[s] // 3
+            flags[tri[t, 0]] = False
+            flags[tri[t, 1]] = False
+            flags[tri[t, 2]] = False
 
 
 @njit(cache=True)
