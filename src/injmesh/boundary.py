@@ -1080,6 +1080,108 @@ def mesh_curves(pieces: Sequence[Piece], h: SizeFn, diameter: float) -> CurveMes
     return CurveMesh(np.concatenate(points), np.concatenate(fixed_all), e, ep, npc, tuple(chains))
 
 
+def sharp_junctions(
+    domain: Domain, h: SizeFn, pieces: Sequence[Piece], junctions: FloatArray
+) -> tuple[FloatArray, tuple[Piece, ...]]:
+    """Nodes held at equal distances from the tip on both walls of a sharp junction: where an
+    interior curve leaves the domain's boundary at less than ``SHARP_CORNER`` degrees.
+
+    The domain's own sharp corners are laid out so (:func:`_tip_graded`, :func:`_pin_wedges`),
+    but at a junction the boundary wall and the curve are laid by Step 1 each on its own, and
+    their first nodes came at different distances from the tip (a 20-degree wedge: 0.0075 and
+    0.006, tip triangle q = 0.46 where the angle allows 0.57).  Here the distances are
+    ``r_k = h(tip) g**k`` (``g = 1 + 2 sin(a / 2)``, the tip grading's factor) on both walls,
+    held fixed like :func:`_pin_wedges`'s nodes while the walls are closer than ``PIN_WIDTH *
+    h``, and at least the first: the tip triangle is then isosceles.  Only straight stretches
+    are used: ``r_k`` stays below half of the curve's first polyline segment and of the
+    distance to the nearest other junction or domain corner.
+
+    Returns
+    -------
+    points : (k, 2) array
+        Nodes on the boundary, to be held fixed like corners.
+    pieces : tuple of Piece
+        The pieces with the nodes on their walls added as fixed vertices.
+    """
+    from dataclasses import replace
+
+    out_b: list[FloatArray] = []
+    new_pieces = list(pieces)
+    if len(junctions) == 0 or not pieces:
+        return np.empty((0, 2)), tuple(new_pieces)
+    diam = domain.diameter
+    eps = 10 * tol.ON_BOUNDARY * diam
+    others = np.concatenate([domain.corners().reshape(-1, 2), junctions])
+    normal = domain.gradient(junctions)
+    normal = normal / np.maximum(np.hypot(*normal.T), 1e-300)[:, None]
+    for j, tip in enumerate(junctions):
+        d_other = np.hypot(*(others - tip).T)
+        d_other = d_other[d_other > eps]
+        if np.any(np.hypot(*(domain.corners().reshape(-1, 2) - tip).T) <= eps):
+            continue  # a domain corner: its walls' directions are not the gradient's
+        room_b = 0.5 * float(d_other.min()) if len(d_other) else diam
+        wall_dir = np.array([-normal[j, 1], normal[j, 0]])
+        for k, piece in enumerate(new_pieces):
+            p = piece.points
+            n = len(p)
+            ends = []
+            for e in (0, n - 1):
+                if np.hypot(*(p[e] - tip)) > eps:
+                    continue
+                if e == 0 and n > 1:
+                    ends.append((0, 1))
+                if e == 0 and piece.closed and n > 2:
+                    ends.append((0, n - 1))
+                if e == n - 1 and not piece.closed and n > 1:
+                    ends.append((n - 1, n - 2))
+            inserts: list[tuple[int, int, FloatArray]] = []
+            for e, nb_ in ends:
+                seg = p[nb_] - p[e]
+                length = float(np.hypot(*seg))
+                if length <= eps:
+                    continue
+                t_c = seg / length
+                cos_w = float(t_c @ wall_dir)
+                w = wall_dir if cos_w >= 0 else -wall_dir
+                a = float(np.arccos(min(1.0, abs(cos_w))))
+                if not a < np.radians(SHARP_CORNER):
+                    continue
+                g = 1.0 + 2.0 * np.sin(0.5 * a)
+                room = min(0.5 * length, room_b)
+                r = float(h(tip[None, :])[0])
+                radii: list[float] = []
+                while r < room and len(radii) < TIP_STEPS:
+                    on_wall = tip + r * w
+                    on_curve = tip + r * t_c
+                    hr = float(np.min(h(np.stack([on_wall, on_curve]))))
+                    if radii and r * np.sin(a) >= PIN_WIDTH * hr:
+                        break
+                    radii.append(r)
+                    r *= g
+                if not radii:
+                    continue
+                rr = np.asarray(radii)
+                out_b.append(domain.project(tip + rr[:, None] * w))
+                inserts.append((e, nb_, piece.project(tip + rr[:, None] * t_c)))
+            if not inserts:
+                continue
+            pts, fix = p, piece.fixed
+            # The new vertices go between the end and its neighbour (at the end of a closed
+            # piece, after its last vertex), later positions first so earlier ones stay put.
+            for e, nb_, q in sorted(inserts, key=lambda x: -max(x[0], x[1])):
+                if nb_ == e + 1:
+                    at, rows = e + 1, q
+                elif e == 0:  # a closed piece, towards its last vertex
+                    at, rows = len(pts), q[::-1]
+                else:  # an open piece's last vertex, towards the one before it
+                    at, rows = e, q[::-1]
+                pts = np.concatenate([pts[:at], rows, pts[at:]])
+                fix = np.concatenate([fix[:at], np.ones(len(rows), dtype=bool), fix[at:]])
+            new_pieces[k] = replace(piece, points=pts, fixed=fix)
+    points = np.concatenate(out_b) if out_b else np.empty((0, 2))
+    return points, tuple(new_pieces)
+
+
 def _refine_open(
     project: Callable[[FloatArray], FloatArray], h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_]
 ) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:
