@@ -143,3 +143,38 @@ def test_removing_a_hull_node_is_left_to_a_full_triangulation():
     tri = delaunay(p)
     assert _without_nodes(p, tri, np.array([0])) is None
     assert len(_without_nodes(p, tri, np.array([4]))) == 2
+
+
+def test_thinnest_chords_prunes_nothing_it_needs():
+    """The gap kernel skips pairs already judged and sides that cannot beat their best or their
+    radius; every chord thinner than its vertex's radius is still the brute-force one."""
+    from injmesh.kernels.gaps import thinnest_chords
+    from injmesh.kernels.outline import _judge
+    from injmesh.sizing.background import densify
+    from injmesh.sizing.features import loop_frames
+
+    square = densify(np.array([(0, 0), (1, 0), (1, 1), (0, 1)], dtype=float), 0.03)
+    a = np.linspace(0.0, 2 * np.pi, 90, endpoint=False)
+    hole = np.stack([0.5 + 0.2 * np.cos(-a), 0.3 + 0.2 * np.sin(-a)], axis=1)  # clockwise
+    v, _, prv, seg, seg_len, v_n, seg_n = loop_frames([square, hole])
+    wall = np.arange(len(v)) >= len(square)
+    radius = 0.05 + 0.3 * v[:, 0]
+    cos = float(np.cos(np.radians(40.0)))
+    w, foot = thinnest_chords(v, prv, seg, seg_len, v_n, seg_n, wall, radius, cos)
+    ref = np.full(len(v), np.inf)
+    for i in range(len(v)):
+        for j in range(len(v)):
+            if i == j or not (wall[i] or wall[j]) or np.hypot(*(v[j] - v[i])) > max(radius[i], radius[j]):
+                continue
+            for s in (j, prv[j]):
+                if s in (i, prv[i]):
+                    continue
+                kind, fx, fy, dist = _judge(i, s, v, seg, seg_len, v_n, seg_n, np.inf, 0.0, cos)
+                if kind == 2:
+                    e = np.array([fx - v[i, 0], fy - v[i, 1]]) / dist
+                    ref[i] = min(ref[i], dist / (e @ v_n[i]))
+    keep = ref < radius
+    assert keep.sum() > 50
+    np.testing.assert_allclose(w[keep], ref[keep], rtol=1e-12)
+    assert np.all(w[~keep] >= radius[~keep])
+    assert np.all(np.hypot(*(foot[keep] - v[keep]).T) <= w[keep] * (1 + 1e-12))
