@@ -1044,6 +1044,7 @@ def _repair_rounds(
     pinned = best < part_min(q[free], tri[free], label)
     last: FloatArray | None = None
     stalled = 0
+    seen = {_topology(tri)}
     for _ in range(REPAIR_ROUNDS):
         bad = np.flatnonzero(q < REPAIR_Q)
         bad = bad[~pinned[label[tri[bad, 0]]]]
@@ -1092,6 +1093,14 @@ def _repair_rounds(
         last = score
         if stalled >= REPAIR_STALL:
             break
+        # A round that is no better and whose triangles are an earlier round's (the same
+        # node numbers, the same triangles) has come back where the rounds were: a split
+        # undone by a collapse, and the next ones would repeat the cycle.
+        if not better.any():
+            key = _topology(tri)
+            if key in seen:
+                break
+            seen.add(key)
     if not best_round.any():
         return relax.p, relax.tri, kept, iterations, triangulations
     # Each part from its own best round; the nodes of a part are all in its triangles.
@@ -1113,6 +1122,12 @@ def _repair_rounds(
         return relax.p, relax.tri, kept, iterations, triangulations
     triangulations += 1
     return p, tri, out_kept, iterations, triangulations
+
+
+def _topology(tri: IntArray) -> bytes:
+    """The triangles ``tri`` as a set (each sorted, then the rows), as bytes to compare."""
+    t = np.sort(tri, axis=1)
+    return bytes(t[np.lexsort(t.T[::-1])].astype(np.int64).tobytes())
 
 
 def _restricted(
