@@ -8,7 +8,7 @@ import time
 import warnings
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -809,13 +809,17 @@ def _injection_with_curves(
             projectors.append(piece.project)
         which[j] = same[0] if same else len(projectors) - 1
 
+    # The grouping of the last group list: a relaxation asks for the same nodes at every step.
+    last: list[Any] = []
+
     def project(q: FloatArray, group: NDArray[np.intp]) -> FloatArray:
         if len(projectors) == 1:
             return projectors[0](q)
-        pid = which[group - 1]
+        if not (last and len(last[0]) == len(group) and np.array_equal(last[0], group)):
+            pid = which[group - 1]
+            last[:] = [group.copy(), [(i, np.flatnonzero(pid == i)) for i in np.unique(pid).tolist()]]
         out = np.empty_like(q)
-        for i in np.unique(pid).tolist():
-            sel = pid == i
+        for i, sel in last[1]:
             out[sel] = projectors[i](q[sel])
         return out
 

@@ -314,17 +314,28 @@ class Interfaces:
     def projector(self, domain: Domain, node_group: IntArray | None = None) -> NodeProjector:
         """Project each node's point onto its own curve, or onto the domain's boundary."""
         groups = self.node_group if node_group is None else node_group
+        # The split of the last node list: a relaxation asks for the same nodes at every
+        # step until its connectivity changes.
+        last: list[IntArray] = []
 
-        def project(q: FloatArray, nodes: IntArray) -> FloatArray:
+        def split(nodes: IntArray) -> list[IntArray]:
+            if last and len(last[0]) == len(nodes) and np.array_equal(last[0], nodes):
+                return last
             g = np.zeros(len(nodes), dtype=np.intp)
             known = nodes < len(groups)
             g[known] = groups[nodes[known]]
-            out = np.empty_like(q)
             on_domain = g == 0
-            if on_domain.any():
+            curve = np.flatnonzero(~on_domain)
+            last[:] = [nodes.copy(), np.flatnonzero(on_domain), curve, g[curve]]
+            return last
+
+        def project(q: FloatArray, nodes: IntArray) -> FloatArray:
+            _, on_domain, curve, g = split(nodes)
+            out = np.empty_like(q)
+            if len(on_domain):
                 out[on_domain] = domain.project(q[on_domain])
-            if not on_domain.all():
-                out[~on_domain] = self.project(q[~on_domain], g[~on_domain])
+            if len(curve):
+                out[curve] = self.project(q[curve], g)
             return out
 
         return project
