@@ -81,6 +81,15 @@ def test_a_region_touching_the_boundary_at_an_angle_keeps_a_floor():
     assert mesh.quality().min() > 0.57
 
 
+def test_wedge_junction_anywhere_in_the_region_outline():
+    """The same 20-degree wedge, its outline starting elsewhere (the junction a middle
+    vertex of its curve piece) and mirrored: the tip triangle is isosceles either way."""
+    t = np.tan(np.radians(20.0))
+    for outline in ([(0.3, 0.3), (0.3, 0.0), (0.7, 0.4 * t)], [(0.7, 0.0), (0.7, 0.3), (0.3, 0.4 * t)]):
+        mesh = injmesh.generate(SQUARE, 0.05, regions={"wedge": injmesh.Polygon(outline)})
+        assert mesh.quality().min() > 0.57
+
+
 @pytest.mark.parametrize("reverse", [False, True])
 def test_crack_leaving_the_wall_at_a_sharp_angle_gets_an_isosceles_tip(reverse):
     """A crack leaving the bottom wall at 15 degrees (either end first): the tip triangle is

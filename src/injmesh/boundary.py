@@ -1124,17 +1124,15 @@ def sharp_junctions(
         for k, piece in enumerate(new_pieces):
             p = piece.points
             n = len(p)
+            # The stretches leaving the tip: (vertex at the tip, its neighbour along the piece).
             ends = []
-            for e in (0, n - 1):
-                if np.hypot(*(p[e] - tip)) > eps:
-                    continue
-                if e == 0 and n > 1:
-                    ends.append((0, 1))
-                if e == 0 and piece.closed and n > 2:
-                    ends.append((0, n - 1))
-                if e == n - 1 and not piece.closed and n > 1:
-                    ends.append((n - 1, n - 2))
-            inserts: list[tuple[int, int, FloatArray]] = []
+            for e in np.flatnonzero(np.hypot(*(p - tip).T) <= eps).tolist():
+                for nb_ in (e - 1, e + 1):
+                    if piece.closed and n > 2:
+                        ends.append((e, nb_ % n))
+                    elif 0 <= nb_ < n:
+                        ends.append((e, nb_))
+            inserts: list[tuple[int, FloatArray]] = []
             for e, nb_ in ends:
                 seg = p[nb_] - p[e]
                 length = float(np.hypot(*seg))
@@ -1151,9 +1149,7 @@ def sharp_junctions(
                 r = float(h(tip[None, :])[0])
                 radii: list[float] = []
                 while r < room and len(radii) < TIP_STEPS:
-                    on_wall = tip + r * w
-                    on_curve = tip + r * t_c
-                    hr = float(np.min(h(np.stack([on_wall, on_curve]))))
+                    hr = float(np.min(h(np.stack([tip + r * w, tip + r * t_c]))))
                     if radii and r * np.sin(a) >= PIN_WIDTH * hr:
                         break
                     radii.append(r)
@@ -1162,19 +1158,19 @@ def sharp_junctions(
                     continue
                 rr = np.asarray(radii)
                 out_b.append(domain.project(tip + rr[:, None] * w))
-                inserts.append((e, nb_, piece.project(tip + rr[:, None] * t_c)))
+                q = piece.project(tip + rr[:, None] * t_c)  # nearest the tip first
+                # Between the vertex and its neighbour, in the piece's order: after the
+                # vertex going forward, before it going back (a closed piece's vertex 0
+                # going back to its last: after the last).
+                if nb_ == e + 1 or piece.closed and (e, nb_) == (n - 1, 0):
+                    inserts.append((e + 1, q))
+                else:
+                    inserts.append((e if e > 0 else n, q[::-1]))
             if not inserts:
                 continue
             pts, fix = p, piece.fixed
-            # The new vertices go between the end and its neighbour (at the end of a closed
-            # piece, after its last vertex), later positions first so earlier ones stay put.
-            for e, nb_, q in sorted(inserts, key=lambda x: -max(x[0], x[1])):
-                if nb_ == e + 1:
-                    at, rows = e + 1, q
-                elif e == 0:  # a closed piece, towards its last vertex
-                    at, rows = len(pts), q[::-1]
-                else:  # an open piece's last vertex, towards the one before it
-                    at, rows = e, q[::-1]
+            # Later positions first, so the earlier ones stay where they are.
+            for at, rows in sorted(inserts, key=lambda x: -x[0]):
                 pts = np.concatenate([pts[:at], rows, pts[at:]])
                 fix = np.concatenate([fix[:at], np.ones(len(rows), dtype=bool), fix[at:]])
             new_pieces[k] = replace(piece, points=pts, fixed=fix)
