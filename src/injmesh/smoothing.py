@@ -225,6 +225,11 @@ REPAIR_ROUNDS = 10
 #: ... ending early after this many rounds in a row that change no part's q_min (see
 #: ``_repair_rounds``).
 REPAIR_STALL = 1
+#: ... or at a round no better than the best that has an earlier round's triangles, every node
+#: within this fraction of h of where it was then (a cycle: the paper's circle with a hole and
+#: an inclusion came back to the same two triangulations from round 4 on, the nodes within
+#: 0.004 h, the tolerance the patches' relaxation stops at).
+REPAIR_SAME = 0.02
 #: Spring steps after each repair round: the change is local and settles quickly.
 REPAIR_STEPS = 40
 #: Repair relaxes only the nodes within this many edges of the nodes it changed.
@@ -1055,7 +1060,7 @@ def _repair_rounds(
     pinned = best < part_min(q[free], tri[free], label)
     last: FloatArray | None = None
     stalled = 0
-    seen = {_topology(tri)}
+    seen = {_topology(tri): p}
     for _ in range(REPAIR_ROUNDS):
         bad = np.flatnonzero(q < REPAIR_Q)
         bad = bad[~pinned[label[tri[bad, 0]]]]
@@ -1105,13 +1110,17 @@ def _repair_rounds(
         if stalled >= REPAIR_STALL:
             break
         # A round that is no better and whose triangles are an earlier round's (the same
-        # node numbers, the same triangles) has come back where the rounds were: a split
-        # undone by a collapse, and the next ones would repeat the cycle.
+        # node numbers, the same triangles), its nodes within REPAIR_SAME * h of where they
+        # were then, has come back where the rounds were: a split undone by a collapse, the
+        # next rounds would repeat the cycle.
         if not better.any():
             key = _topology(tri)
             if key in seen:
-                break
-            seen.add(key)
+                moved = np.hypot(*(p - seen[key]).T)
+                far = moved > 0
+                if not far.any() or np.all(moved[far] <= REPAIR_SAME * relax.h(p[far])):
+                    break
+            seen[key] = p
     if not best_round.any():
         return relax.p, relax.tri, kept, iterations, triangulations
     # Each part from its own best round; the nodes of a part are all in its triangles.
