@@ -1027,7 +1027,8 @@ def _repair_rounds(
     a worse triangle (a 1e5-node graded disc: start 0.71, every round 0.49-0.62 somewhere).
     Each part is scored by its own q_min (the rest of the mesh, ``outer_q``, does not change).
     A flip that meets an inverted triangle (which only a triangulation of the whole mesh could
-    undo) ends the rounds.
+    undo) ends the rounds, and so does a round that comes back to an earlier one (no better,
+    the same triangles, the nodes within ``REPAIR_SAME * h``): the rounds are cycling.
     """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
