@@ -478,3 +478,105 @@ def test_nearest_boundary_points_are_those_of_the_default_tree(name: str) -> Non
     if name != "large":  # the case the fallback is for does occur
         d = cKDTree(seg_a).query(p, k=4)[0]
         assert np.any(d[:, 1:] == d[:, :-1])
+
+
+# --- plain signed distances: the traced boundary stands in for the exact one -----------------
+
+
+def _plain(domain):
+    from injmesh.geometry import as_domain
+
+    return as_domain(domain.sdf, bbox=domain.bbox)
+
+
+def _claims_thick_plain(domain, size) -> bool:
+    """effective_size's test for a plain signed distance: the curves traced on its grid."""
+    from injmesh.sizing.background import sampled_grid
+    from injmesh.sizing.features import FEATURE_CELLS, _loops, _thick
+
+    h = injmesh.sizing.as_size_function(size)
+    grid, h0 = sampled_grid(h, domain, None, 10**6, 0.2, domain.diameter / FEATURE_CELLS)
+    return _thick(domain, float(h0[grid.inside].max()), 2.0, 30.0, grid.spacing, h.restricted(domain),
+                  _loops(domain, grid))
+
+
+@pytest.mark.parametrize("domain, size", _thick_cases())
+def test_thick_claim_on_traced_loops_implies_the_feature_size_changes_nothing(domain, size) -> None:
+    """The same guarantee as for exact boundaries, for the domains given as plain functions."""
+    plain = _plain(domain)
+    if _claims_thick_plain(plain, size):
+        assert _feature_term_changes_nothing(plain, size)
+
+
+@pytest.mark.parametrize(
+    "domain, size",
+    [
+        (Rectangle((0, 0), (2, 0.1)), 0.05),
+        (Polygon([(0, 0), (1, 0), (1, 0.45), (0.55, 0.5), (1, 0.55), (1, 1), (0, 1)]), 0.05),
+        (Polygon([(0, 0), (1, 0), (0, 0.2)]), 0.02),
+        (Rectangle((0, 0), (1, 1)), 0.6),
+    ],
+    ids=["channel", "notch", "wedge", "coarse"],
+)
+def test_thin_plain_domains_are_not_claimed_thick(domain, size) -> None:
+    assert not _claims_thick_plain(_plain(domain), size)
+
+
+@pytest.mark.parametrize("name", ["unit_disc", "square_with_hole", "circle_with_hole",
+                                  "two_circles_and_square", "l_shape"])
+def test_paper_plain_cases_skip_the_feature_grid(name: str, monkeypatch) -> None:
+    """Table 10's plain functions need no feature grid at the paper's sizes (as the composed
+    domains), and effective_size returns h itself."""
+    import injmesh.sizing.features as features
+    from injmesh.cases import CASES
+
+    def no_grid(*args, **kwargs):
+        raise AssertionError("the feature grid was computed")
+
+    monkeypatch.setattr(features, "feature_grid", no_grid)
+    case = CASES[name]
+    h = effective_size(case.size, case.sdf, bbox=case.bbox)
+    assert h.function is injmesh.sizing.as_size_function(case.size).function
+
+
+def test_thinned_loops_keep_corners_and_spacing() -> None:
+    from injmesh.sizing.background import densify
+    from injmesh.sizing.features import _thinned
+
+    square = densify(Rectangle((0, 0), (1, 1)).boundary_loops(0.001)[0], 0.001)
+    kept = _thinned(square, 0.1)
+    for corner in [(0, 0), (1, 0), (1, 1), (0, 1)]:
+        assert np.hypot(*(kept - corner).T).min() < 1e-12
+    gaps = np.hypot(*(np.roll(kept, -1, axis=0) - kept).T)
+    assert gaps.max() <= 0.1 + 0.001 + 1e-9 and 36 <= len(kept) <= 48  # a step and a segment
+
+
+def test_thinnest_gap_first_pass_answers_as_the_neighbour_search(monkeypatch) -> None:
+    """With the pairs pass disabled (every pair kept), the neighbour search gives the same gap."""
+    import injmesh.sizing.features as features
+    from injmesh.sizing.background import resolving_background
+
+    strait = Polygon([(0, 0), (2, 0), (2, 0.9925), (2.3, 0.9925), (2.3, 0), (4.3, 0), (4.3, 2), (2.3, 2),
+                      (2.3, 1.0075), (2, 1.0075), (2, 2), (0, 2)])  # 0.015 wide
+    real = features._gaps
+
+    def first_pass_never_settles(*args):  # the first pass has a nonzero slack (last argument)
+        return real(*args) if args[-1] == 0.0 else np.zeros(1)
+
+    for domain, expect_finite in [(strait, True), (CASES_GEOMETRY("square_with_four_holes"), False)]:
+        grid = resolving_background(domain, domain.diameter / features.FEATURE_CELLS, 10**6, explicit=False)
+        gap = features.thinnest_gap(domain, grid, 30.0)
+        monkeypatch.setattr(features, "_gaps", first_pass_never_settles)
+        assert features.thinnest_gap(domain, grid, 30.0) == gap
+        monkeypatch.setattr(features, "_gaps", real)
+        assert np.isfinite(gap) == expect_finite
+        # A boundary of more vertices than GAP_FIRST_PASS_MAX skips the pass: the same answer.
+        monkeypatch.setattr(features, "GAP_FIRST_PASS_MAX", 0)
+        assert features.thinnest_gap(domain, grid, 30.0) == gap
+        monkeypatch.undo()
+
+
+def CASES_GEOMETRY(name: str):
+    from injmesh.cases import CASES
+
+    return CASES[name].geometry

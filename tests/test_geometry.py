@@ -376,3 +376,40 @@ def test_plain_projection_stacks_its_calls_to_d() -> None:
     assert calls[0] == 3 * len(p)  # d and both offsets at once
     # After that, per Newton step one call for d and at most one (stacked) for a gradient.
     assert len(calls) <= 1 + 2 * 8
+
+
+# --- plain callables' corners ----------------------------------------------------------------
+
+
+def test_plain_corners_near_fixed_points_are_the_fixed_points() -> None:
+    """A fixed point at a corner replaces it (no refined copy beside it); corners without a
+    fixed point are found and refined, on every loop."""
+    from injmesh.geometry import as_domain
+
+    case = CASES["square_with_hole"]
+    given = as_domain(case.sdf, bbox=case.bbox, fixed_points=case.fixed_points).corners()
+    assert len(given) == 8 and np.array_equal(given, case.fixed_points)
+    found = as_domain(case.sdf, bbox=case.bbox).corners()
+    assert len(found) == 8
+    for c in case.fixed_points:
+        assert _has_point(found, c, 1e-6)
+    half = as_domain(case.sdf, bbox=case.bbox, fixed_points=case.fixed_points[::2]).corners()
+    assert len(half) == 8
+    for c in case.fixed_points:
+        assert _has_point(half, c, 1e-6)
+
+
+def test_corners_of_all_loops_refined_together_as_one_by_one() -> None:
+    """One bisection over the corners of every loop gives each loop's own result, bit for bit."""
+    from injmesh.geometry import as_domain
+    from injmesh.geometry.tracing import corner_brackets, detect_corners, grid_spacing, refine_corners
+
+    case = CASES["square_with_four_holes"]
+    dom = as_domain(case.sdf, bbox=case.bbox)
+    spacing = grid_spacing(dom.bbox, np.inf)
+    loops = dom.boundary_loops(spacing)
+    one_by_one = np.concatenate([detect_corners(loop, spacing, refine=dom) for loop in loops])
+    brackets = [corner_brackets(loop, spacing) for loop in loops]
+    together = refine_corners(dom, np.concatenate([b[1] for b in brackets]),
+                              np.concatenate([b[2] for b in brackets]))
+    assert len(together) == 4 and np.array_equal(one_by_one, together)

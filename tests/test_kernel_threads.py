@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from injmesh import Circle, generate
+from injmesh import Circle, Rectangle, generate
 from injmesh.kernels import smooth as k
 from injmesh.kernels import threads
 from injmesh.smoothing import DT
@@ -157,3 +157,64 @@ def test_threads_stay_within_the_cores_this_process_may_use() -> None:
     env = dict(os.environ, NUMBA_NUM_THREADS="8",
                PYTHONPATH=str(Path(__file__).resolve().parents[1] / "src"))
     subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=120)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 10**6), n=st.integers(16, 300), chunks=st.integers(2, 7))
+def test_threaded_size_kernels_equal_serial(seed: int, n: int, chunks: int) -> None:
+    # h's compiled parts (the corner cap's cones, a raster's bilinear values) split into
+    # chunks give the serial numbers: each point's value depends on that point alone.
+    from injmesh.kernels.interp import bilinear, threaded_bilinear
+    from injmesh.kernels.outline import cone_index, corner_cones, threaded_corner_cones
+
+    rng = np.random.default_rng(seed)
+    corners = rng.random((max(3, n // 4), 2))
+    spacing = 0.01 + 0.05 * rng.random(len(corners))
+    p = rng.random((n, 2)) * 1.4 - 0.2
+    hp = 0.02 + 0.2 * rng.random(n)
+    index = cone_index(corners, spacing, 0.3, 4, 0.5, 2.0 * len(corners), 0.22)
+    # A uniform x axis (cells found arithmetically) and an irregular y axis (bisection).
+    x, y = np.linspace(0.0, 1.0, 7), np.sort(rng.random(5))
+    values = 0.1 + rng.random((5, 7))
+    inv = 6.0, 0.0
+    serial = corner_cones(p, hp, index), bilinear(x, y, values, inv[0], inv[1], p)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(threads, "MIN_CHUNK", 8)
+        mp.setattr(threads, "threads", lambda: chunks)
+        assert threads.worth(n) == (n >= 16)
+        split = threaded_corner_cones(p, hp, index), threaded_bilinear(x, y, values, inv[0], inv[1], p)
+    for a, b in zip(serial, split, strict=True):
+        assert a.tobytes() == b.tobytes()
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 10**6), n=st.integers(16, 400), chunks=st.integers(2, 7))
+def test_threaded_signed_distance_equals_serial(seed: int, n: int, chunks: int) -> None:
+    # An outline's sdf splits its (Z-ordered) points into chunks whose first search starts
+    # from the root: the least distance and its sign do not depend on where a search starts.
+    # Points on vertices and edges (ties between pieces) included.
+    from injmesh import Polygon
+    from injmesh.kernels.brep import nearest, signed_distance
+
+    rng = np.random.default_rng(seed)
+    angles = np.sort(rng.uniform(0, 2 * np.pi, 12))
+    ring = np.column_stack([np.cos(angles), np.sin(angles)]) * rng.uniform(0.5, 1.0, (12, 1))
+    # A hole touching nothing, and a circle-minus-square: arcs and segments.
+    poly = Polygon(ring, holes=[0.2 * ring[::-1]])
+    origin, g = poly.kernel_data()
+    arcs = (Circle((0, 0), 0.9) - Rectangle((-0.1, -0.1), (0.3, 0.3))).exact_brep()
+    p = np.concatenate([rng.uniform(-1.2, 1.2, (n, 2)), ring, 0.2 * ring, 0.5 * (ring + np.roll(ring, 1, 0))])
+    q = np.ascontiguousarray(p - origin)
+    serial = nearest(q, g)[0]
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(threads, "MIN_CHUNK", 8)
+        mp.setattr(threads, "threads", lambda: chunks)
+        split = signed_distance(q, g)
+    assert serial.tobytes() == split.tobytes()
+    assert np.array_equal(poly.sdf(p), serial)
+    origin, g = arcs.kernel_data()
+    q = np.ascontiguousarray(p - origin)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(threads, "MIN_CHUNK", 8)
+        mp.setattr(threads, "threads", lambda: chunks)
+        assert signed_distance(q, g).tobytes() == nearest(q, g)[0].tobytes()

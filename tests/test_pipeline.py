@@ -430,3 +430,20 @@ def test_fixed_points_are_exact_nodes_of_the_injection_mesh() -> None:
     for f in fixed:
         assert np.hypot(*(mesh.points - f).T).min() == 0.0
     assert mesh.quality().min() > 0.6
+
+
+def test_a_plain_function_is_not_cleaned_so_needs_no_h_min(monkeypatch) -> None:
+    """Domain.cleaned changes nothing for a plain signed distance: the cleaning's h_min
+    estimate (a quadrature of h) is skipped, and the mesh is the same."""
+    import injmesh.pipeline as pipeline
+
+    case = CASES["l_shape"]
+    before = injmesh.generate(case.sdf, case.size, bbox=case.bbox, fixed_points=case.fixed_points)
+
+    def no_estimate(*args, **kwargs):
+        raise AssertionError("h_min was estimated for the cleaning")
+
+    monkeypatch.setattr(pipeline, "estimate_nodes", no_estimate)
+    after = injmesh.generate(case.sdf, case.size, bbox=case.bbox, fixed_points=case.fixed_points)
+    assert np.array_equal(before.points, after.points) and np.array_equal(before.triangles, after.triangles)
+    assert after.stats.cleaning == {}

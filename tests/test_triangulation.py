@@ -437,3 +437,23 @@ def test_delaunay_gives_the_neighbours_of_its_triangles(seed: int, n: int, kind:
 
     _, _, flat = mesh.centroids_and_flatness(p, t64, FLAT)
     assert len(kept) == len(tri) - int(flat.sum())
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10**6), n=st.integers(10, 150), k=st.integers(3, 10))
+def test_recovery_keeps_the_neighbour_table(seed: int, n: int, k: int) -> None:
+    # constrained_triangles hands the triangulation's neighbour table to the flips and their
+    # result to the inside test, instead of finding it twice more: the table the flips keep
+    # must be the result's own, and the triangles those of recovery from scratch.
+    from injmesh.kernels import mesh
+    from injmesh.triangulation import _recover_segments, delaunay_with_neighbours
+
+    rng = np.random.default_rng(seed)
+    p = rng.random((n, 2))
+    ring = rng.choice(n, min(k, n), replace=False)
+    seg = np.stack([ring, np.roll(ring, -1)], axis=1)
+    tri, nbr = delaunay_with_neighbours(p)
+    plain, failed = recover_segments(p, tri.copy(), seg)
+    kept, failed_kept, table = _recover_segments(p, tri, seg, nbr)
+    assert np.array_equal(plain, kept) and np.array_equal(failed, failed_kept)
+    assert np.array_equal(table, mesh.neighbours(kept.astype(np.int64), n))

@@ -565,12 +565,12 @@ class _CornerCap:
                                 CONE_CELLS * len(self.corners), h_max)
 
     def __call__(self, p: FloatArray) -> FloatArray:
-        from .kernels.outline import corner_cones
+        from .kernels.outline import threaded_corner_cones
 
         hp = self.h(p)
         if len(p) == 0:
             return hp
-        out: FloatArray = corner_cones(
+        out: FloatArray = threaded_corner_cones(
             np.ascontiguousarray(p, dtype=np.float64), np.ascontiguousarray(hp, dtype=np.float64),
             self.index)
         return out

@@ -474,6 +474,10 @@ def _clean(
         and math.isfinite(float(min_feature)) and min_feature >= 0
     ):
         raise ValueError(f"min_feature must be a finite length >= 0, got {min_feature!r}")
+    if type(domain).cleaned is Domain.cleaned:
+        # The base class cleans nothing (a plain signed distance): no tolerance is needed, so
+        # h_min's estimate, a quadrature of h over the domain, is left out.
+        return domain, {}
     # A constant h (capped at the diameter, as the stages cap it) is its own minimum.
     if h.constant is not None:
         h_min = min(h.constant, domain.diameter)
@@ -1160,13 +1164,13 @@ class _Cones:
                                 h_max)
 
     def __call__(self, p: FloatArray) -> FloatArray:
-        from .kernels.outline import corner_cones
+        from .kernels.outline import threaded_corner_cones
 
         hp = self.h(p)
         if len(p) == 0:
             return hp
-        out: FloatArray = corner_cones(np.ascontiguousarray(p, dtype=np.float64),
-                                       np.ascontiguousarray(hp, dtype=np.float64), self.index)
+        out: FloatArray = threaded_corner_cones(np.ascontiguousarray(p, dtype=np.float64),
+                                                np.ascontiguousarray(hp, dtype=np.float64), self.index)
         return out
 
 

@@ -108,8 +108,10 @@ Other choices the paper leaves open:
   to case (worst q_min over the paper's cases at h/2, h, 2h: 0.821, formerly 0.710).
 * **Boundary conformity.**  Delaunay keeps a boundary segment when no node lies in its
   diametral circle.  At the end, free nodes found in the circle of a missing segment are pushed
-  just outside it and the nodes re-triangulated; a segment still missing is split at its
-  projected midpoint (a new boundary node), repeatedly, until Delaunay keeps its halves.
+  just outside it and the nodes re-triangulated (kept only if fewer segments are then missing:
+  in a notch the pushed nodes can land in other segments' circles); a segment still missing is
+  split at its projected midpoint (a new boundary node), repeatedly, until Delaunay keeps its
+  halves, and what splitting cannot recover is recovered by flips.
   Triangles are kept or dropped by flood fill from the segments' sides
   (``triangulation.classify_by_walls``), so a triangle bridging a narrow notch is never kept.
   ``generate`` then checks the result (:mod:`injmesh.validate`).
@@ -582,6 +584,8 @@ class _Relaxation:
         bars (and so hbar around them), their inside flags and their anchors."""
         k, p = self._k, self.p
         indptr, _, eid, ld = self._csr
+        # The moved nodes and their neighbours: the ends of their bars.
+        near = k.ring_one(indptr, self._csr[1], nodes.astype(np.int64), self._mark)
         if getattr(self.h, "constant", None) is None and len(nodes):
             if len(self._seen) != len(ld):
                 self._seen = np.zeros(len(ld), dtype=np.bool_)
@@ -589,9 +593,7 @@ class _Relaxation:
             bars = self._bars[b]
             ld[b] = self.h(0.5 * (p[bars[:, 0]] + p[bars[:, 1]]))
             # hbar of the moved nodes and of their neighbours (whose bars these are too).
-            ends = np.zeros(len(p), dtype=bool)
-            ends[bars.ravel()] = True
-            k.mean_bar_size_of(indptr, eid, ld, np.flatnonzero(ends), self.hbar)
+            k.mean_bar_size_of(indptr, eid, ld, near, self.hbar)
         if len(self._sl) and len(nodes):
             # Only the boundary bars with a node in ``nodes`` changed (on a detailed outline
             # the sliding nodes are a fifth of the mesh, and h there is the costly corner cap).
@@ -604,8 +606,8 @@ class _Relaxation:
                 b, bp, bn = b[rows], bp[rows], bn[rows]
                 self._ld_slide[0][rows] = self.h(0.5 * (p[b] + p[bp]))
                 self._ld_slide[1][rows] = self.h(0.5 * (p[b] + p[bn]))
-        near = k.ring_one(indptr, self._csr[1], nodes.astype(np.int64), self._mark)
-        k.stable_scale(p, near, indptr, self._csr[1], eid, ld, DT * self.hbar, STABLE_GAIN, self._damp)
+        k.threaded_stable_scale(p, near, indptr, self._csr[1], eid, ld, DT * self.hbar, STABLE_GAIN,
+                                self._damp)
         self._inside_depth(nodes[self._is_free[nodes]])
         self.anchor[nodes] = p[nodes]
         self.retriangulations += 1
@@ -1343,7 +1345,7 @@ def _conform(
 
     A segment is missing when a node lies in its diametral circle; such free nodes are pushed
     radially to 1.05 times the circle's radius and the nodes re-triangulated (at most
-    ``rounds`` times, and only while each round leaves fewer missing: a segment at a sharp
+    ``rounds`` times; a round is kept only if it leaves fewer missing: a segment at a sharp
     corner or across a notch stays missing however its neighbours are pushed, and each round
     re-triangulates the whole mesh, ~0.4 s at 1e5 nodes; ``_recover`` takes what is left).
     Nodes in ``pinned`` (boundary nodes added by recovery) never move.  ``interior`` segments
@@ -1353,12 +1355,10 @@ def _conform(
 
     count = 0
     required = walls if interior is None else np.concatenate([walls, interior])
-    before = len(required) + 1
+    miss = missing_walls(tri, required)
     for _ in range(rounds):
-        miss = missing_walls(tri, required)
-        if len(miss) == 0 or len(miss) >= before:
+        if len(miss) == 0:
             break
-        before = len(miss)
         a, b = p[miss[:, 0]], p[miss[:, 1]]
         mid, radius = 0.5 * (a + b), 0.5 * np.hypot(*(b - a).T)
         free = np.arange(n_fixed, len(p))
@@ -1367,15 +1367,21 @@ def _conform(
         if len(free) == 0:
             break
         tree = cKDTree(p[free])
-        p = p.copy()
+        pushed = p.copy()
         for c, r in zip(mid, radius, strict=True):
             inside = free[tree.query_ball_point(c, r)]
             if len(inside):
-                v = p[inside] - c
+                v = pushed[inside] - c
                 dist = np.maximum(np.hypot(*v.T), 1e-300)
-                p[inside] = c + v * (1.05 * r / dist)[:, None]
-        tri = triangulate(domain, p, walls)
+                pushed[inside] = c + v * (1.05 * r / dist)[:, None]
+        after = triangulate(domain, pushed, walls)
         count += 1
+        left = missing_walls(after, required)
+        if len(left) >= len(miss):
+            # The pushed nodes encroach other segments (a thin part): keep the mesh as it was,
+            # with fewer missing, for _recover.
+            break
+        p, tri, miss = pushed, after, left
     return p, tri, count
 
 

@@ -199,8 +199,9 @@ def constrained_triangles(
     (:func:`classify_by_walls`).  Where a node lies exactly on a segment, recovery fails and
     that region is judged by its centroids; the mesh's own check then reports the segment.
     """
-    full, _ = recover_segments(points, delaunay(points), walls)
-    return inside_triangles(points, full, sdf, walls)
+    tri, nbr = delaunay_with_neighbours(points)
+    full, _, nbr = _recover_segments(points, tri, walls, nbr)
+    return inside_triangles(points, full, sdf, walls, nbr)
 
 
 def boundary_edges(triangles: IntArray) -> IntArray:
@@ -319,16 +320,27 @@ def recover_segments(
     >>> sorted(sorted(t) for t in tri.tolist()), failed.tolist()
     ([[0, 1, 2], [0, 2, 3]], [])
     """
+    tri, failed, _ = _recover_segments(points, triangles, segments)
+    return tri, failed
+
+
+def _recover_segments(
+    points: FloatArray, triangles: IntArray, segments: IntArray,
+    neighbours: NDArray[np.int64] | None = None,
+) -> tuple[IntArray, IntArray, NDArray[np.int64]]:
+    """:func:`recover_segments`, and the neighbour table of the result; ``neighbours``: that of
+    ``triangles`` when the caller has it (the flips keep it up to date)."""
     from .kernels import delaunay as kd
     from .kernels import mesh
 
     p = _pts(points)
     tri64 = _tri(triangles, len(p))
     seg = np.ascontiguousarray(np.reshape(segments, (-1, 2)), dtype=np.int64)
+    nbr = (mesh.neighbours(tri64, len(p)) if neighbours is None else neighbours).astype(np.int32)
     if len(seg) == 0 or len(tri64) == 0:
-        return tri64.astype(np.intp), np.zeros(0, dtype=np.intp)
+        return tri64.astype(np.intp), np.zeros(0, dtype=np.intp), nbr.astype(np.int64)
     tri = tri64.astype(np.int32)
-    nbr = mesh.neighbours(tri64, len(p)).astype(np.int32)
     con = np.zeros(tri.shape, dtype=np.uint8)
     status = kd.recover_segments(p, tri, nbr, con, seg)
-    return tri.astype(np.intp), np.flatnonzero(status != kd.OK).astype(np.intp)
+    return (tri.astype(np.intp), np.flatnonzero(status != kd.OK).astype(np.intp),
+            nbr.astype(np.int64))

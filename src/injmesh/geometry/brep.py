@@ -191,7 +191,10 @@ class BRep(Domain):
 
     def sdf(self, p: FloatArray) -> FloatArray:
         """Exact signed distance (Eq. 2.1): negative inside."""
-        return self._query(p)[0]
+        q = np.ascontiguousarray(as_points(p) - self._origin)
+        _, g = self.kernel_data()
+        out: FloatArray = _kernels().signed_distance(q, g)
+        return out
 
     def project(self, p: FloatArray) -> FloatArray:
         """The nearest boundary point of each point (Eq. 3.2, exact)."""

@@ -222,16 +222,25 @@ def detect_corners(loop: FloatArray, spacing: float, refine: Domain | None = Non
     chords see the same turn; on a smooth curve the longer chord sees twice the turn.  A vertex
     is a corner where the short-chord turn exceeds ``CORNER_ANGLE``, is at least 3/4 of the
     long-chord turn and is a local maximum.  With ``refine``, the corner is then located by
-    bisection along the boundary between a vertex on either side: the half whose end has the
-    closer gradient direction keeps that end, so the bracket closes on the jump of grad d.
+    :func:`refine_corners` between a vertex on either side.
     """
+    found, a, b = corner_brackets(loop, spacing)
+    if refine is None:
+        return found
+    return refine_corners(refine, a, b)
+
+
+def corner_brackets(loop: FloatArray, spacing: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The corners :func:`detect_corners` finds on ``loop`` (vertices, ``(c, 2)``) and the
+    vertices on either side of each, ``(c, 2)`` twice, that bracket it along the boundary."""
     n = len(loop)
+    none = np.empty((0, 2))
     if n < 16:
-        return np.empty((0, 2))
+        return none, none, none
     seg = np.hypot(*(np.roll(loop, -1, axis=0) - loop).T)
     k = max(2, int(round(3 * spacing / max(float(np.median(seg)), 1e-300))))
     if 4 * k >= n:
-        return np.empty((0, 2))
+        return none, none, none
     idx = np.arange(n)
 
     def turn(m: int) -> FloatArray:
@@ -247,10 +256,21 @@ def detect_corners(loop: FloatArray, spacing: float, refine: Domain | None = Non
     peak &= ~np.roll(peak, 1)
     i = np.flatnonzero(peak)
     if len(i) == 0:
+        return none, none, none
+    return loop[i], loop[(i - k) % n], loop[(i + k) % n]
+
+
+def refine_corners(refine: Domain, a: FloatArray, b: FloatArray) -> FloatArray:
+    """Corners located by bisection along the boundary of ``refine`` between boundary points
+    ``a (c, 2)`` and ``b (c, 2)`` on either side of each: the half whose end has the closer
+    gradient direction keeps that end, so the bracket closes on the jump of grad d.
+
+    Every corner follows its own bisection (d is evaluated point by point), so the corners of
+    all loops can be refined in one call, with the same results as one loop at a time and a
+    fraction of the calls to d.
+    """
+    if len(a) == 0:
         return np.empty((0, 2))
-    if refine is None:
-        return loop[i]
-    a, b = loop[(i - k) % n], loop[(i + k) % n]
     ga, gb = _unit(refine.gradient(a)), _unit(refine.gradient(b))
     for _ in range(50):
         m = refine.project(0.5 * (a + b))

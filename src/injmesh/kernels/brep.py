@@ -32,6 +32,8 @@ import math
 import numba as nb
 import numpy as np
 
+from . import threads
+
 LEAF = 4  # build_bvh's default, for box_pairs (overlap queries want small leaves)
 QUERY_LEAF = 8  # for nearest-point searches: a shallower tree, contiguous leaves
 TWO_PI = 2.0 * math.pi
@@ -521,6 +523,45 @@ def nearest(q, g):  # type: ignore[no-untyped-def]
         foot[i, 0], foot[i, 1] = fz[s, 0], fz[s, 1]
         piece[i] = kz[s]
     return dist, foot, piece
+
+
+@nb.njit(cache=True, nogil=True)
+def _distances_z(qz, lo, hi, g, out):  # type: ignore[no-untyped-def]
+    """Signed distances of the Z-ordered points ``qz[lo:hi]`` into ``out[lo:hi]``, as
+    :func:`nearest` finds them, the first search starting from the root."""
+    stack = np.empty(2 * _STACK)
+    tie_j = np.empty(_TIES, dtype=np.int64)
+    tie_w = np.empty(_TIES, dtype=np.int64)
+    child, start, count, order, lt, box = g[10], g[11], g[12], g[13], g[20], g[21]
+    parent, leaf_of, st = g[22], g[23], g[24]
+    last = -1
+    for s in range(lo, hi):
+        d, _, _, _, last = _nearest_point(qz[s, 0], qz[s, 1], last, child, start, count, order,
+                                          lt, box, parent, leaf_of, st, stack, tie_j, tie_w)
+        out[s] = d
+    return out
+
+
+def signed_distance(q, g):  # type: ignore[no-untyped-def]
+    """The signed distances of :func:`nearest`, over chunks of the Z-ordered points on several
+    threads.
+
+    The distance is the least over every piece and its sign comes from every piece at that
+    distance (up to ``_TIES`` of them), whichever the search meets first, so a chunk that
+    starts its search from the root instead of its predecessor's leaf gives the same number.
+    (The foot and piece of an exact tie are the first met: :func:`nearest` keeps its one
+    order for those.)
+    """
+    n = q.shape[0]
+    if not threads.worth(n):
+        return nearest(q, g)[0]
+    zorder = _morton_order(q)
+    qz = np.ascontiguousarray(q[zorder])
+    dz = np.empty(n)
+    threads.each(n, lambda lo, hi: _distances_z(qz, lo, hi, g, dz))
+    out = np.empty(n)
+    out[zorder] = dz
+    return out
 
 
 @nb.njit(cache=True)

@@ -846,6 +846,12 @@ def flip_rows_to_delaunay(points, tri, nbr, constrained, vt, rows):  # type: ign
     whose empty-circle test involves a moved vertex is an edge of a triangle incident to it, so
     ``rows`` must hold every triangle incident to a moved vertex.  Flips spread from there as
     far as they need to (each flip re-checks its four outer edges).  Same return codes.
+
+    Once a row has been swept, every edge of the triangle it holds is locally Delaunay, and
+    stays so: a later flip can only change the four outer edges of its quadrilateral, which it
+    re-checks (its own new diagonal is Delaunay).  So an edge to a row swept earlier (the two
+    triangles of a moved vertex share their edges), or a row listed twice, is not tested again:
+    the test would find it Delaunay.  The flips made are the same, in the same order.
     """
     for a in range(rows.shape[0]):
         t = rows[a]
@@ -856,12 +862,15 @@ def flip_rows_to_delaunay(points, tri, nbr, constrained, vt, rows):  # type: ign
     stack = np.empty(256, dtype=np.int32)
     cap = 50 * rows.shape[0] + 1000
     flips = 0
+    swept = np.zeros(tri.shape[0], dtype=np.bool_)
     for a in range(rows.shape[0]):
         t = rows[a]
-        if tri[t, 0] == DEAD:
+        if tri[t, 0] == DEAD or swept[t]:
             continue
+        swept[t] = True
         for k in range(3):
-            if nbr[t, k] >= 0 and _edge_illegal(points, tri, nbr, constrained, t, k):
+            u = nbr[t, k]
+            if u >= 0 and not swept[u] and _edge_illegal(points, tri, nbr, constrained, t, k):
                 stack[0] = 3 * t + k
                 stack, f = _legalize(points, tri, nbr, constrained, vt, stack, 1, cap - flips)
                 if f < 0:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from . import threads
+
 
 @numba.njit(cache=True, inline="always")
 def _cell(axis: np.ndarray, inv_step: float, v: float) -> tuple[int, float]:
@@ -38,7 +40,7 @@ def _cell(axis: np.ndarray, inv_step: float, v: float) -> tuple[int, float]:
     return i, (v - axis[i]) / (axis[i + 1] - axis[i])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def bilinear(
     x: np.ndarray, y: np.ndarray, values: np.ndarray, inv_dx: float, inv_dy: float, p: np.ndarray
 ) -> np.ndarray:
@@ -157,3 +159,20 @@ def barycentric(
                 found[k] = True
                 break
     return out, found
+
+
+def threaded_bilinear(
+    x: np.ndarray, y: np.ndarray, values: np.ndarray, inv_dx: float, inv_dy: float, p: np.ndarray
+) -> np.ndarray:
+    """:func:`bilinear` over chunks of the points on several threads (the same numbers)."""
+    n = p.shape[0]
+    if not threads.worth(n):
+        out: np.ndarray = bilinear(x, y, values, inv_dx, inv_dy, p)
+        return out
+    res = np.empty(n)
+
+    def run(lo: int, hi: int) -> None:
+        res[lo:hi] = bilinear(x, y, values, inv_dx, inv_dy, p[lo:hi])
+
+    threads.each(n, run)
+    return res

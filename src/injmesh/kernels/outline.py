@@ -33,6 +33,8 @@ import math
 import numba as nb
 import numpy as np
 
+from . import threads
+
 _TINY = np.finfo(np.float64).tiny
 
 
@@ -442,7 +444,7 @@ def _leaf_min(lv, j, x, y, rate, tmp):  # type: ignore[no-untyped-def]
     return m
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
     """``min(hp, min_c (spacing[c] + rate * sqrt(dx * dx + dy * dy)))`` over all corners c, for
     each point of ``p (n, 2)``: the brute-force minimum bit for bit.
@@ -501,4 +503,19 @@ def corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
                 out[i] = v
                 continue
         out[i], _ = _least(x, y, x, y, v, tree, stack)
+    return out
+
+
+def threaded_corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
+    """:func:`corner_cones` over chunks of the points on several threads: each point's value is
+    the brute-force minimum whatever the order, so the chunks give the serial answer."""
+    n = p.shape[0]
+    if not threads.worth(n):
+        return corner_cones(p, hp, index)
+    out = np.empty(n)
+
+    def run(lo: int, hi: int) -> None:
+        out[lo:hi] = corner_cones(p[lo:hi], hp[lo:hi], index)
+
+    threads.each(n, run)
     return out

@@ -4,8 +4,11 @@ The Euler step's kernels (``kernels.smooth.bar_forces``, ``stable_scale``, ``adv
 each node from its own row only (gather form), so splitting the node list into consecutive
 chunks and running the chunks at once gives exactly the serial numbers, whatever the number
 of chunks; what a kernel reduces over the nodes (largest move, a count) its caller combines
-in chunk order, with the same ties as the serial loop.  The kernels are compiled ``nogil=True``
-and the chunks run on a small pool of Python threads.
+in chunk order, with the same ties as the serial loop.  So do the per-point queries of h and
+of the geometry (``outline.threaded_corner_cones``, ``interp.threaded_bilinear``,
+``brep.signed_distance``), whose value at a point is that point's own whatever order the points
+come in.  The kernels are compiled ``nogil=True`` and the chunks run on a small pool of Python
+threads.
 
 Why not numba's ``parallel=True``: its threading layers are each unsafe somewhere a mesher
 runs.  The workqueue layer aborts when two threads launch kernels at once (a threaded batch),

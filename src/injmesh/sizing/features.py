@@ -78,6 +78,9 @@ NEAREST_VERTICES = 3
 GAP_NEIGHBOURS = 24
 GAP_WIDTHS = 3.0
 GAP_REFINE = 16.0
+#: :func:`thinnest_gap` tries every vertex pair within the gap width first (a quick "no gap"
+#: on a smooth domain) only up to this many boundary vertices.
+GAP_FIRST_PASS_MAX = 8192
 #: A gap counts when the boundary between its two sides is this many times longer than the gap
 #: (so the two walls of a sharp wedge, joined at its tip, do not count).
 GAP_DETOUR = 20.0
@@ -117,19 +120,30 @@ def _positive(name: str, value: float | None) -> float | None:
     return float(value)
 
 
-def _boundary(domain: Domain, grid: Background) -> tuple[FloatArray, FloatArray, NDArray[np.intp]]:
+Segments = tuple[FloatArray, FloatArray, NDArray[np.intp]]
+
+
+def _loops(domain: Domain, grid: Background) -> list[FloatArray]:
+    """The boundary loops :func:`_boundary` joins: a polygon's or a circle's own at half a grid
+    spacing, else the curves traced on the grid (inside on the left) projected onto the
+    boundary."""
+    if isinstance(domain, (Polygon, Circle)):
+        return list(domain.boundary_loops(0.5 * grid.spacing))
+    from ..geometry.tracing import loops_from_grid
+
+    return [domain.project(loop) for loop in loops_from_grid(grid.x, grid.y, grid.d)]
+
+
+def _boundary(domain: Domain, grid: Background, loops: list[FloatArray] | None = None) -> Segments:
     """Boundary segments no longer than half a grid spacing.
 
     Returns the start ``(m, 2)`` and end ``(m, 2)`` of each segment and, for each segment, the
-    index of the one before it on its loop.
+    index of the one before it on its loop.  ``loops``: :func:`_loops` of this grid, when the
+    caller has them.
     """
     step = 0.5 * grid.spacing
-    if isinstance(domain, (Polygon, Circle)):
-        loops = domain.boundary_loops(step)
-    else:
-        from ..geometry.tracing import loops_from_grid
-
-        loops = [domain.project(loop) for loop in loops_from_grid(grid.x, grid.y, grid.d)]
+    if loops is None:
+        loops = _loops(domain, grid)
     a, b, prev = [], [], []
     offset = 0
     for loop in loops:
@@ -198,18 +212,20 @@ def _nearest_of_segments(p: FloatArray, cand: NDArray[np.intp], seg_a: FloatArra
     return dist[rows, best], foot[rows, best]
 
 
-def thinnest_gap(domain: Domain, grid: Background, corner_angle: float) -> float:
+def thinnest_gap(domain: Domain, grid: Background, corner_angle: float,
+                 boundary: Segments | None = None) -> float:
     """The narrowest gap between facing walls, measured on the boundary itself (inf if none).
 
     For every boundary vertex v (polylines at half the grid spacing) the nearest
     ``GAP_NEIGHBOURS`` vertices are examined: a vertex u across the domain (the midpoint of uv
     inside) whose wall faces v's within ``corner_angle`` (uv within that angle of both inward
     normals) bounds a gap of width |uv|.  This sees necks, straits and slits too thin to hold a
-    grid node, which the medial-axis test on the grid cannot.
+    grid node, which the medial-axis test on the grid cannot.  ``boundary``: :func:`_boundary`
+    of this grid, when the caller has it.
     """
     from scipy.spatial import cKDTree
 
-    seg_a, seg_b, prev = _boundary(domain, grid)
+    seg_a, seg_b, prev = _boundary(domain, grid) if boundary is None else boundary
     if len(seg_a) < 4:
         return np.inf
     tangent = seg_b - seg_a[prev]
@@ -219,27 +235,54 @@ def thinnest_gap(domain: Domain, grid: Background, corner_angle: float) -> float
     probe = 0.25 * grid.spacing * normal
     flip = domain.sdf(seg_a + probe) > domain.sdf(seg_a - probe)
     normal[flip] *= -1
+    width = GAP_WIDTHS * grid.spacing
+    cos = math.cos(math.radians(corner_angle))
+    arcs = _arc_positions(seg_a, seg_b, prev)
+    tree = cKDTree(seg_a)
+    # First every pair of vertices closer than the width, with a little slack in each test: a
+    # superset of the nearest neighbours' pairs below (each test is symmetric in v and u, so
+    # one order of each pair is enough).  Where none of them is a gap (a domain thin only at a
+    # few h, such as the paper's four-hole square), neither is any of those, and the answer
+    # costs a fraction of the neighbour search.  A detailed outline (more than
+    # GAP_FIRST_PASS_MAX vertices) is thin somewhere nearly always, and there the first pass
+    # only added its own cost (0.23 s on the 20,000-vertex fixture): it goes straight to the
+    # search.  The answer is the same either way.
+    slack = 1e-9
+    if len(seg_a) <= GAP_FIRST_PASS_MAX:
+        pairs = tree.query_pairs(width * (1.0 + slack), output_type="ndarray")
+        v, u = pairs[:, 0], pairs[:, 1]
+        if not len(_gaps(domain, seg_a, normal, arcs, v, u, np.hypot(*(seg_a[u] - seg_a[v]).T), width,
+                         cos, slack)):
+            return np.inf
     k = min(GAP_NEIGHBOURS, len(seg_a))
-    dist, idx = cKDTree(seg_a).query(seg_a, k=k)
+    dist, idx = tree.query(seg_a, k=k)
     v = np.repeat(np.arange(len(seg_a)), k)
-    u, dist = idx.ravel(), dist.ravel()
-    keep = (dist > 0) & (dist < GAP_WIDTHS * grid.spacing)
+    gap = _gaps(domain, seg_a, normal, arcs, v, idx.ravel(), dist.ravel(), width, cos, 0.0)
+    return float(gap.min()) if len(gap) else np.inf
+
+
+def _gaps(domain: Domain, seg_a: FloatArray, normal: FloatArray,
+          arcs: tuple[NDArray[np.intp], FloatArray, FloatArray], v: NDArray[np.intp], u: NDArray[np.intp],
+          dist: FloatArray, width: float, cos: float, slack: float) -> FloatArray:
+    """The widths of the gaps :func:`thinnest_gap` counts among the vertex pairs ``(v, u)``
+    ``dist`` apart (each test loosened by ``slack``, relative)."""
+    keep = (dist > 0) & (dist < width * (1.0 + slack))
     v, u, dist = v[keep], u[keep], dist[keep]
     e = (seg_a[u] - seg_a[v]) / dist[:, None]
-    cos = math.cos(math.radians(corner_angle))
-    facing = (np.einsum("kj,kj->k", e, normal[v]) > cos) & (-np.einsum("kj,kj->k", e, normal[u]) > cos)
+    facing = ((np.einsum("kj,kj->k", e, normal[v]) > cos - slack)
+              & (-np.einsum("kj,kj->k", e, normal[u]) > cos - slack))
     v, u, dist = v[facing], u[facing], dist[facing]
     # Walls meeting at a nearby sharp corner are a wedge, not a gap: the boundary between v and
     # u must be long compared with the gap (around a lobe, a hole or a deep notch).
-    loop, along, total = _arc_positions(seg_a, seg_b, prev)
+    loop, along, total = arcs
     arc = np.abs(along[u] - along[v])
     arc = np.where(loop[u] == loop[v], np.minimum(arc, total[v] - arc), np.inf)
-    around = arc > GAP_DETOUR * dist
+    around = arc > GAP_DETOUR * dist * (1.0 - slack)
     v, u, dist = v[around], u[around], dist[around]
     if not len(v):
-        return np.inf
-    across = domain.sdf(0.5 * (seg_a[u] + seg_a[v])) < 0
-    return float(dist[across].min()) if across.any() else np.inf
+        return dist
+    out: FloatArray = dist[domain.sdf(0.5 * (seg_a[u] + seg_a[v])) < 0]
+    return out
 
 
 def _outline() -> Any:
@@ -284,7 +327,7 @@ def wall_frames(
 
 def thick_everywhere(domain: Domain, width: float, corner_angle: float,
                      needed: Callable[[FloatArray], FloatArray] | None = None,
-                     back_to_back: float = 0.0) -> bool:
+                     back_to_back: float = 0.0, loops: list[FloatArray] | None = None) -> bool:
     """True when no two walls of the domain face each other closer than ``width``.
 
     Then the medial axis between roughly opposite walls (the one :func:`feature_grid` marks) is
@@ -305,8 +348,11 @@ def thick_everywhere(domain: Domain, width: float, corner_angle: float,
     slit, of a narrow notch): grid nodes on either side of such a gap see opposite walls, and
     :func:`feature_grid` marks them.
 
-    False when the domain has no exact boundary (a plain signed distance) or the test would
-    need more than ``THICK_MAX_VERTICES`` vertices: the caller then computes the feature size.
+    ``loops`` (closed polylines, the domain on their left) stand for the boundary when given:
+    a plain signed distance's curves traced on a background grid, those :func:`feature_grid`
+    measures from.  Without them, False when the domain has no exact boundary (a plain signed
+    distance); False also when the test would need more than ``THICK_MAX_VERTICES`` vertices:
+    the caller then computes the feature size.
 
     The vertex pairs and the facing test are compiled (:mod:`injmesh.kernels.outline`): a
     detailed outline has hundreds of vertex pairs per vertex within ``width``.  With
@@ -315,11 +361,16 @@ def thick_everywhere(domain: Domain, width: float, corner_angle: float,
     part of the cost, and ``needed`` is asked at the closest pairs first, in batches.  The
     answer is the full search's either way.
     """
-    brep = exact_boundary(domain)
-    if brep is None or not (width > 0 and math.isfinite(width)):
+    if not (width > 0 and math.isfinite(width)):
         return False
     step = width / THICK_STEPS
-    loops = [np.asarray(loop, dtype=np.float64) for loop in brep.boundary_loops(step)]
+    if loops is None:
+        brep = exact_boundary(domain)
+        if brep is None:
+            return False
+        loops = [np.asarray(loop, dtype=np.float64) for loop in brep.boundary_loops(step)]
+    else:
+        loops = [_thinned(np.asarray(loop, dtype=np.float64), step) for loop in loops]
     loops = [loop for loop in loops if len(loop) >= 2]
     if not loops:
         return False
@@ -360,6 +411,37 @@ def thick_everywhere(domain: Domain, width: float, corner_angle: float,
     return not _closer_than_needed(v[a], foot, dist, needed)
 
 
+#: :func:`_thinned` keeps every vertex where a polyline turns by more than this many degrees.
+THIN_TURN = 15.0
+
+
+def _thinned(loop: FloatArray, step: float) -> FloatArray:
+    """A closed polyline's vertices about ``step`` apart along it, and every vertex where it
+    turns by more than ``THIN_TURN`` degrees.
+
+    A loop traced on a fine grid has vertices a fraction of a grid spacing apart, many times
+    more than :func:`thick_everywhere` samples an exact boundary with (``width /
+    THICK_STEPS``), and the test's cost grows with the square of the vertices per width.  The
+    kept vertices lie on the boundary as the traced ones do, so the chords between them are
+    those an exact boundary would give (their sagitta is the exact test's too); the corners,
+    where the direction changes quickly, keep their vertices.
+    """
+    if len(loop) < 4:
+        return loop
+    seg = np.roll(loop, -1, axis=0) - loop
+    seg_len = np.hypot(*seg.T)
+    along = np.concatenate([[0.0], np.cumsum(seg_len)[:-1]])
+    _, first = np.unique(np.floor(along / step), return_index=True)
+    keep = np.zeros(len(loop), dtype=bool)
+    keep[first] = True
+    tiny = np.finfo(float).tiny
+    unit = seg / np.maximum(seg_len, tiny)[:, None]
+    turn = np.einsum("kj,kj->k", np.roll(unit, 1, axis=0), unit)  # cosine at each vertex
+    keep |= turn < math.cos(math.radians(THIN_TURN))
+    out: FloatArray = loop[keep]
+    return out
+
+
 def _pair_reach(v: FloatArray, seg_len: FloatArray, step: float, width: float) -> float:
     """How far beyond a width ``w`` :func:`thick_everywhere` looks for the partner vertex.
 
@@ -396,13 +478,15 @@ def _closer_than_needed(start: FloatArray, foot: FloatArray, dist: FloatArray,
     return False
 
 
-def refine_for_gaps(domain: Domain, grid: Background, corner_angle: float, max_cells: int) -> Background:
+def refine_for_gaps(domain: Domain, grid: Background, corner_angle: float, max_cells: int,
+                    boundary: Segments | None = None) -> Background:
     """A finer grid when a gap between facing walls is under GAP_WIDTHS spacings wide.
 
     The spacing becomes a third of the narrowest gap (at most GAP_REFINE times finer, within
-    ``max_cells``) so the gap holds grid nodes and its medial axis is resolved.
+    ``max_cells``) so the gap holds grid nodes and its medial axis is resolved.  ``boundary``:
+    :func:`_boundary` of ``grid``, when the caller has it.
     """
-    gap = thinnest_gap(domain, grid, corner_angle)
+    gap = thinnest_gap(domain, grid, corner_angle, boundary)
     if not gap < GAP_WIDTHS * grid.spacing:
         return grid
     wanted = max(gap / 3.0, grid.spacing / GAP_REFINE)
@@ -412,8 +496,11 @@ def refine_for_gaps(domain: Domain, grid: Background, corner_angle: float, max_c
     return make_background(domain, finer, capped)
 
 
-def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle: float) -> FloatArray:
-    """The feature size at the grid nodes inside the domain and next to it; ``inf`` elsewhere."""
+def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle: float,
+                 boundary: Segments | None = None) -> FloatArray:
+    """The feature size at the grid nodes inside the domain and next to it; ``inf`` elsewhere.
+
+    ``boundary``: :func:`_boundary` of this grid, when the caller has it."""
     from scipy import ndimage
 
     inside = grid.inside
@@ -430,7 +517,7 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
     seeds[1:, :] |= band[:-1, :] & inside[1:, :]
     seeds[:, :-1] |= band[:, 1:] & inside[:, :-1]
     seeds[:, 1:] |= band[:, :-1] & inside[:, 1:]
-    seg_a, seg_b, prev = _boundary(domain, grid)
+    seg_a, seg_b, prev = _boundary(domain, grid) if boundary is None else boundary
     exact = seeds.copy()
     feet = np.zeros(shape + (2,))
     feet[seeds] = _nearest_on_boundary(grid.nodes(seeds), seg_a, seg_b, prev)[1]
@@ -593,9 +680,12 @@ def feature_size(
         grid = resolving_background(dom, wanted, int(max_cells), explicit=False)
     else:
         grid = resolving_background(dom, float(spacing), int(max_cells), explicit=True)
+    boundary = _boundary(dom, grid)
     if spacing is None:
-        grid = refine_for_gaps(dom, grid, angle, int(max_cells))
-    fs = feature_grid(dom, grid, 2.0 * grid.spacing if floor is None else floor, angle)
+        finer = refine_for_gaps(dom, grid, angle, int(max_cells), boundary)
+        if finer is not grid:
+            grid, boundary = finer, _boundary(dom, finer)
+    fs = feature_grid(dom, grid, 2.0 * grid.spacing if floor is None else floor, angle, boundary)
     return GriddedSize._trusted(grid.x, grid.y, _fill_outside(fs))
 
 
@@ -744,15 +834,23 @@ def effective_size(
                                 h_min=lo)
     inside = grid.inside
     h_max = float(h0[inside].max()) if inside.any() else np.inf
-    if thick or n_layers is None or _thick(dom, h_max, n_layers, angle, grid.spacing, _probe_h(h, dom)):
+    loops = None
+    if not thick and n_layers is not None and exact_boundary(dom) is None and inside.any():
+        # Without an exact boundary (a plain signed distance) the test below looks at the
+        # curves traced on this grid, the boundary the feature size would be measured from.
+        loops = _loops(dom, grid)
+    if thick or n_layers is None or _thick(dom, h_max, n_layers, angle, grid.spacing, _probe_h(h, dom),
+                                           loops):
         # No wall faces another within a few of the largest h: the feature size changes nothing.
         target = h0
     else:
+        boundary = _boundary(dom, grid, loops)
         if spacing is None:
-            finer = refine_for_gaps(dom, grid, angle, int(max_cells))
+            finer = refine_for_gaps(dom, grid, angle, int(max_cells), boundary)
             if finer is not grid:
                 grid, h0 = finer, sample_size(h, dom, finer, rate_)
-        fs = feature_grid(dom, grid, 2.0 * grid.spacing if floor is None else floor, angle)
+                boundary = _boundary(dom, grid)
+        fs = feature_grid(dom, grid, 2.0 * grid.spacing if floor is None else floor, angle, boundary)
         target = np.minimum(h0, fs / n_layers)
     out = target if g is None else limit_grid(target, grid, g)
     # Changes outside (band nodes lowered to the limited extension) do not count, nor rounding:
@@ -776,18 +874,20 @@ def _probe_h(h: SizeFunction, domain: Domain) -> Callable[[FloatArray], FloatArr
 
 
 def _thick(domain: Domain, h_max: float, layers: float, corner_angle: float, spacing: float,
-           h: Callable[[FloatArray], FloatArray] | None = None) -> bool:
-    """Whether the feature size is above ``layers * h`` everywhere (:func:`thick_everywhere`),
-    h bounded by ``h_max``, with a margin for a background grid of ``spacing``; a variable h is
-    evaluated where two walls face each other."""
+           h: Callable[[FloatArray], FloatArray] | None = None,
+           loops: list[FloatArray] | None = None) -> bool:
+    """Whether the feature size is above ``layers * h`` everywhere (:func:`thick_everywhere`,
+    on ``loops`` when given), h bounded by ``h_max``, with a margin for a background grid of
+    ``spacing``; a variable h is evaluated where two walls face each other."""
     factor, pad = THICK_MARGIN * layers, THICK_PAD * spacing
     if h is None:
-        return thick_everywhere(domain, factor * h_max + pad, corner_angle, back_to_back=pad)
+        return thick_everywhere(domain, factor * h_max + pad, corner_angle, back_to_back=pad, loops=loops)
 
     def needed(p: FloatArray) -> FloatArray:
         return np.asarray(factor * np.minimum(h(p), h_max) + pad, dtype=np.float64)
 
-    return thick_everywhere(domain, factor * h_max + pad, corner_angle, needed, back_to_back=pad)
+    return thick_everywhere(domain, factor * h_max + pad, corner_angle, needed, back_to_back=pad,
+                            loops=loops)
 
 
 def _thick_uniform(domain: Domain, size: float, layers: float, corner_angle: float) -> bool:

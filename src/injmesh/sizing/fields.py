@@ -153,10 +153,10 @@ class GriddedSize:
         return float(np.diff(self.x).max()), float(np.diff(self.y).max())
 
     def __call__(self, p: ArrayLike) -> FloatArray:
-        from ..kernels.interp import bilinear
+        from ..kernels.interp import threaded_bilinear
 
         q = np.ascontiguousarray(np.asarray(p, dtype=np.float64).reshape(-1, 2))
-        out: FloatArray = bilinear(self.x, self.y, self.values, self._inv[0], self._inv[1], q)
+        out: FloatArray = threaded_bilinear(self.x, self.y, self.values, self._inv[0], self._inv[1], q)
         return out
 
 
