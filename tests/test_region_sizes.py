@@ -75,7 +75,38 @@ def test_a_region_touching_the_boundary_at_an_angle_keeps_a_floor():
     v = np.array([(0.3, 0.0), (0.7, 0.4 * t), (0.3, 0.3)])
     area = 0.5 * abs(np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1]))
     assert mesh.region_areas()[1] == pytest.approx(area, rel=1e-9)
-    assert mesh.quality().min() > 0.3
+    # The interface leaves the wall at 20 degrees: both walls get their nodes at the same
+    # distances from the tip (boundary.sharp_junctions), so the tip triangle is isosceles, the
+    # best a 20-degree angle allows (q = 0.574); unequal, it was 0.46.
+    assert mesh.quality().min() > 0.57
+
+
+def test_wedge_junction_anywhere_in_the_region_outline():
+    """The same 20-degree wedge, its outline starting elsewhere (the junction a middle
+    vertex of its curve piece) and mirrored: the tip triangle is isosceles either way."""
+    t = np.tan(np.radians(20.0))
+    for outline in ([(0.3, 0.3), (0.3, 0.0), (0.7, 0.4 * t)], [(0.7, 0.0), (0.7, 0.3), (0.3, 0.4 * t)]):
+        mesh = injmesh.generate(SQUARE, 0.05, regions={"wedge": injmesh.Polygon(outline)})
+        assert mesh.quality().min() > 0.57
+
+
+@pytest.mark.parametrize("reverse", [False, True])
+def test_crack_leaving_the_wall_at_a_sharp_angle_gets_an_isosceles_tip(reverse):
+    """A crack leaving the bottom wall at 15 degrees (either end first): the tip triangle is
+    isosceles, q = 0.45 (0.34 with the two walls laid out each on its own)."""
+    a = np.radians(15.0)
+    crack = np.array([(0.2, 0.0), (0.2 + 0.5 * np.cos(a), 0.5 * np.sin(a))])
+    mesh = injmesh.generate(SQUARE, 0.05, curves={"crack": crack[::-1] if reverse else crack})
+    q = mesh.quality()
+    assert q.min() > 0.44
+    tip = np.flatnonzero(np.all(mesh.points == [0.2, 0.0], axis=1))
+    assert len(tip) == 1
+    # The wedge's triangle at the tip (the crack's other side is a 165-degree angle).
+    at_tip = np.flatnonzero((mesh.triangles == tip[0]).any(axis=1))
+    t = mesh.points[mesh.triangles[at_tip[np.argmin(q[at_tip])]]]
+    assert np.all(t[:, 0] >= 0.2) and np.isclose(np.sort(t[:, 1])[1], 0.0)
+    r = np.sort(np.hypot(*(t - [0.2, 0.0]).T))[1:]
+    assert r[0] == pytest.approx(r[1], rel=1e-9)
 
 
 def test_paper_case_with_inclusion_is_deterministic():
@@ -121,3 +152,38 @@ def test_removing_a_hull_node_is_left_to_a_full_triangulation():
     tri = delaunay(p)
     assert _without_nodes(p, tri, np.array([0])) is None
     assert len(_without_nodes(p, tri, np.array([4]))) == 2
+
+
+def test_thinnest_chords_prunes_nothing_it_needs():
+    """The gap kernel skips pairs already judged and sides that cannot beat their best or their
+    radius; every chord thinner than its vertex's radius is still the brute-force one."""
+    from injmesh.kernels.gaps import thinnest_chords
+    from injmesh.kernels.outline import _judge
+    from injmesh.sizing.background import densify
+    from injmesh.sizing.features import loop_frames
+
+    square = densify(np.array([(0, 0), (1, 0), (1, 1), (0, 1)], dtype=float), 0.03)
+    a = np.linspace(0.0, 2 * np.pi, 90, endpoint=False)
+    hole = np.stack([0.5 + 0.2 * np.cos(-a), 0.3 + 0.2 * np.sin(-a)], axis=1)  # clockwise
+    v, _, prv, seg, seg_len, v_n, seg_n = loop_frames([square, hole])
+    wall = np.arange(len(v)) >= len(square)
+    radius = 0.05 + 0.3 * v[:, 0]
+    cos = float(np.cos(np.radians(40.0)))
+    w, foot = thinnest_chords(v, prv, seg, seg_len, v_n, seg_n, wall, radius, cos)
+    ref = np.full(len(v), np.inf)
+    for i in range(len(v)):
+        for j in range(len(v)):
+            if i == j or not (wall[i] or wall[j]) or np.hypot(*(v[j] - v[i])) > max(radius[i], radius[j]):
+                continue
+            for s in (j, prv[j]):
+                if s in (i, prv[i]):
+                    continue
+                kind, fx, fy, dist = _judge(i, s, v, seg, seg_len, v_n, seg_n, np.inf, 0.0, cos)
+                if kind == 2:
+                    e = np.array([fx - v[i, 0], fy - v[i, 1]]) / dist
+                    ref[i] = min(ref[i], dist / (e @ v_n[i]))
+    keep = ref < radius
+    assert keep.sum() > 50
+    np.testing.assert_allclose(w[keep], ref[keep], rtol=1e-12)
+    assert np.all(w[~keep] >= radius[~keep])
+    assert np.all(np.hypot(*(foot[keep] - v[keep]).T) <= w[keep] * (1 + 1e-12))

@@ -215,9 +215,9 @@ def test_repair_on_a_sub_mesh_leaves_the_rest_and_keeps_delaunay() -> None:
 
 
 def test_repair_rounds_stop_when_they_change_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Rounds that leave every part's worst triangle as it was, and none better, end after
-    REPAIR_STALL of them in a row (each would be thrown away); rounds that change something go
-    on to REPAIR_ROUNDS."""
+    """A round that leaves the mesh as it was (the same triangles, the nodes where they were)
+    and is no better ends the rounds: the next ones would repeat it; rounds that move nodes
+    further than REPAIR_SAME * h each time go on to REPAIR_ROUNDS."""
     import injmesh
     from injmesh import smoothing as S
 
@@ -232,15 +232,16 @@ def test_repair_rounds_stop_when_they_change_nothing(monkeypatch: pytest.MonkeyP
     monkeypatch.setattr(S, "_choose_repairs", lambda relax, p, tri, bad: (empty, empty))
     monkeypatch.setattr(S, "_patch", still)
     injmesh.generate(Rectangle((0, 0), (1, 1)), 0.2)
-    assert calls["n"] == S.REPAIR_STALL + 1
+    assert calls["n"] == 1
 
-    # The same with rounds that move a node each time: every round runs.
+    # Rounds that move the free nodes to a new place each time (offsets 0.005, -0.005, 0.01,
+    # -0.01, ... along x, h = 0.2: never within 0.02 h of an earlier round's): every round runs.
     calls["n"] = 0
 
     def jiggle(relax, p, tri, touched, iterations, ring=S.REPAIR_RING, steps=S.REPAIR_STEPS):  # type: ignore[no-untyped-def]
         calls["n"] += 1
         p = p.copy()
-        p[relax.n_fixed:] += 1e-7 * (-1) ** calls["n"]  # every triangle with a free node changes
+        p[relax.n_fixed:, 0] += 0.005 * calls["n"] * (-1) ** (calls["n"] + 1)
         return p, tri, 0.0, 0
 
     monkeypatch.setattr(S, "_patch", jiggle)

@@ -1080,6 +1080,104 @@ def mesh_curves(pieces: Sequence[Piece], h: SizeFn, diameter: float) -> CurveMes
     return CurveMesh(np.concatenate(points), np.concatenate(fixed_all), e, ep, npc, tuple(chains))
 
 
+def sharp_junctions(
+    domain: Domain, h: SizeFn, pieces: Sequence[Piece], junctions: FloatArray
+) -> tuple[FloatArray, tuple[Piece, ...]]:
+    """Nodes held at equal distances from the tip on both walls of a sharp junction: where an
+    interior curve leaves the domain's boundary at less than ``SHARP_CORNER`` degrees.
+
+    The domain's own sharp corners are laid out so (:func:`_tip_graded`, :func:`_pin_wedges`),
+    but at a junction the boundary wall and the curve are laid by Step 1 each on its own, and
+    their first nodes came at different distances from the tip (a 20-degree wedge: 0.0075 and
+    0.006, tip triangle q = 0.46 where the angle allows 0.57).  Here the distances are
+    ``r_k = h(tip) g**k`` (``g = 1 + 2 sin(a / 2)``, the tip grading's factor) on both walls,
+    held fixed like :func:`_pin_wedges`'s nodes while the walls are closer than ``PIN_WIDTH *
+    h``, and at least the first: the tip triangle is then isosceles.  Only straight stretches
+    are used: ``r_k`` stays below half of the curve's first polyline segment and of the
+    distance to the nearest other junction or domain corner.
+
+    Returns
+    -------
+    points : (k, 2) array
+        Nodes on the boundary, to be held fixed like corners.
+    pieces : tuple of Piece
+        The pieces with the nodes on their walls added as fixed vertices.
+    """
+    from dataclasses import replace
+
+    out_b: list[FloatArray] = []
+    new_pieces = list(pieces)
+    if len(junctions) == 0 or not pieces:
+        return np.empty((0, 2)), tuple(new_pieces)
+    diam = domain.diameter
+    eps = 10 * tol.ON_BOUNDARY * diam
+    others = np.concatenate([domain.corners().reshape(-1, 2), junctions])
+    normal = domain.gradient(junctions)
+    normal = normal / np.maximum(np.hypot(*normal.T), 1e-300)[:, None]
+    for j, tip in enumerate(junctions):
+        d_other = np.hypot(*(others - tip).T)
+        d_other = d_other[d_other > eps]
+        if np.any(np.hypot(*(domain.corners().reshape(-1, 2) - tip).T) <= eps):
+            continue  # a domain corner: its walls' directions are not the gradient's
+        room_b = 0.5 * float(d_other.min()) if len(d_other) else diam
+        wall_dir = np.array([-normal[j, 1], normal[j, 0]])
+        for k, piece in enumerate(new_pieces):
+            p = piece.points
+            n = len(p)
+            # The stretches leaving the tip: (vertex at the tip, its neighbour along the piece).
+            ends = []
+            for e in np.flatnonzero(np.hypot(*(p - tip).T) <= eps).tolist():
+                for nb_ in (e - 1, e + 1):
+                    if piece.closed and n > 2:
+                        ends.append((e, nb_ % n))
+                    elif 0 <= nb_ < n:
+                        ends.append((e, nb_))
+            inserts: list[tuple[int, FloatArray]] = []
+            for e, nb_ in ends:
+                seg = p[nb_] - p[e]
+                length = float(np.hypot(*seg))
+                if length <= eps:
+                    continue
+                t_c = seg / length
+                cos_w = float(t_c @ wall_dir)
+                w = wall_dir if cos_w >= 0 else -wall_dir
+                a = float(np.arccos(min(1.0, abs(cos_w))))
+                if not a < np.radians(SHARP_CORNER):
+                    continue
+                g = 1.0 + 2.0 * np.sin(0.5 * a)
+                room = min(0.5 * length, room_b)
+                r = float(h(tip[None, :])[0])
+                radii: list[float] = []
+                while r < room and len(radii) < TIP_STEPS:
+                    hr = float(np.min(h(np.stack([tip + r * w, tip + r * t_c]))))
+                    if radii and r * np.sin(a) >= PIN_WIDTH * hr:
+                        break
+                    radii.append(r)
+                    r *= g
+                if not radii:
+                    continue
+                rr = np.asarray(radii)
+                out_b.append(domain.project(tip + rr[:, None] * w))
+                q = piece.project(tip + rr[:, None] * t_c)  # nearest the tip first
+                # Between the vertex and its neighbour, in the piece's order: after the
+                # vertex going forward, before it going back (a closed piece's vertex 0
+                # going back to its last: after the last).
+                if nb_ == e + 1 or piece.closed and (e, nb_) == (n - 1, 0):
+                    inserts.append((e + 1, q))
+                else:
+                    inserts.append((e if e > 0 else n, q[::-1]))
+            if not inserts:
+                continue
+            pts, fix = p, piece.fixed
+            # Later positions first, so the earlier ones stay where they are.
+            for at, rows in sorted(inserts, key=lambda x: -x[0]):
+                pts = np.concatenate([pts[:at], rows, pts[at:]])
+                fix = np.concatenate([fix[:at], np.ones(len(rows), dtype=bool), fix[at:]])
+            new_pieces[k] = replace(piece, points=pts, fixed=fix)
+    points = np.concatenate(out_b) if out_b else np.empty((0, 2))
+    return points, tuple(new_pieces)
+
+
 def _refine_open(
     project: Callable[[FloatArray], FloatArray], h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_]
 ) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:

@@ -8,13 +8,21 @@ import time
 import warnings
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _tolerances as tol
-from .boundary import BoundaryMesh, CurveMesh, corner_size, estimate_nodes, mesh_boundary, mesh_curves
+from .boundary import (
+    BoundaryMesh,
+    CurveMesh,
+    corner_size,
+    estimate_nodes,
+    mesh_boundary,
+    mesh_curves,
+    sharp_junctions,
+)
 from .errors import ConvergenceWarning, MeshError, NodeBudgetError
 from .geometry import Domain, GeometryError, as_domain
 from .geometry.base import as_points
@@ -758,9 +766,12 @@ def _injection_with_curves(
     diam = domain.diameter
     t = time.perf_counter()
     # Step 1 on the boundary, with a node wherever a curve meets it, then on the curves.
-    fixed_b = np.concatenate([fixed, cons.boundary_junctions]) if len(fixed) else cons.boundary_junctions
+    # Where a curve leaves the boundary at a sharp angle, both walls get the same nodes near
+    # the tip, as a sharp corner of the domain does.
+    tip_walls, pieces = sharp_junctions(domain, hc, cons.pieces, cons.boundary_junctions)
+    fixed_b = np.concatenate([fixed.reshape(-1, 2), cons.boundary_junctions, tip_walls])
     bnd = mesh_boundary(domain, hc, fixed_b, max_nodes=max_nodes, callback=callback)
-    cm = mesh_curves(cons.pieces, hc, diam)
+    cm = mesh_curves(pieces, hc, diam)
     nb = len(bnd.points)
     ids = np.empty(len(cm.points), dtype=np.intp)
     on_b = np.zeros(len(cm.points), dtype=bool)
@@ -802,13 +813,17 @@ def _injection_with_curves(
             projectors.append(piece.project)
         which[j] = same[0] if same else len(projectors) - 1
 
+    # The grouping of the last group list: a relaxation asks for the same nodes at every step.
+    last: list[Any] = []
+
     def project(q: FloatArray, group: NDArray[np.intp]) -> FloatArray:
         if len(projectors) == 1:
             return projectors[0](q)
-        pid = which[group - 1]
+        if not (last and len(last[0]) == len(group) and np.array_equal(last[0], group)):
+            pid = which[group - 1]
+            last[:] = [group.copy(), [(i, np.flatnonzero(pid == i)) for i in np.unique(pid).tolist()]]
         out = np.empty_like(q)
-        for i in np.unique(pid).tolist():
-            sel = pid == i
+        for i, sel in last[1]:
             out[sel] = projectors[i](q[sel])
         return out
 

@@ -226,6 +226,11 @@ REPAIR_ROUNDS = 10
 #: ... ending early after this many rounds in a row that change no part's q_min (see
 #: ``_repair_rounds``).
 REPAIR_STALL = 1
+#: ... or at a round no better than the best that has an earlier round's triangles, every node
+#: within this fraction of h of where it was then (a cycle: the paper's circle with a hole and
+#: an inclusion came back to the same two triangulations from round 4 on, the nodes within
+#: 0.004 h, the tolerance the patches' relaxation stops at).
+REPAIR_SAME = 0.02
 #: Spring steps after each repair round: the change is local and settles quickly.
 REPAIR_STEPS = 40
 #: Repair relaxes only the nodes within this many edges of the nodes it changed.
@@ -315,17 +320,28 @@ class Interfaces:
     def projector(self, domain: Domain, node_group: IntArray | None = None) -> NodeProjector:
         """Project each node's point onto its own curve, or onto the domain's boundary."""
         groups = self.node_group if node_group is None else node_group
+        # The split of the last node list: a relaxation asks for the same nodes at every
+        # step until its connectivity changes.
+        last: list[IntArray] = []
 
-        def project(q: FloatArray, nodes: IntArray) -> FloatArray:
+        def split(nodes: IntArray) -> list[IntArray]:
+            if last and len(last[0]) == len(nodes) and np.array_equal(last[0], nodes):
+                return last
             g = np.zeros(len(nodes), dtype=np.intp)
             known = nodes < len(groups)
             g[known] = groups[nodes[known]]
-            out = np.empty_like(q)
             on_domain = g == 0
-            if on_domain.any():
+            curve = np.flatnonzero(~on_domain)
+            last[:] = [nodes.copy(), np.flatnonzero(on_domain), curve, g[curve]]
+            return last
+
+        def project(q: FloatArray, nodes: IntArray) -> FloatArray:
+            _, on_domain, curve, g = split(nodes)
+            out = np.empty_like(q)
+            if len(on_domain):
                 out[on_domain] = domain.project(q[on_domain])
-            if not on_domain.all():
-                out[~on_domain] = self.project(q[~on_domain], g[~on_domain])
+            if len(curve):
+                out[curve] = self.project(q[curve], g)
             return out
 
         return project
@@ -1012,7 +1028,8 @@ def _repair_rounds(
     a worse triangle (a 1e5-node graded disc: start 0.71, every round 0.49-0.62 somewhere).
     Each part is scored by its own q_min (the rest of the mesh, ``outer_q``, does not change).
     A flip that meets an inverted triangle (which only a triangulation of the whole mesh could
-    undo) ends the rounds.
+    undo) ends the rounds, and so does a round that comes back to an earlier one (no better,
+    the same triangles, the nodes within ``REPAIR_SAME * h``): the rounds are cycling.
     """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
@@ -1045,6 +1062,7 @@ def _repair_rounds(
     pinned = best < part_min(q[free], tri[free], label)
     last: FloatArray | None = None
     stalled = 0
+    seen = {_topology(tri): p}
     for _ in range(REPAIR_ROUNDS):
         bad = np.flatnonzero(q < REPAIR_Q)
         bad = bad[~pinned[label[tri[bad, 0]]]]
@@ -1093,6 +1111,18 @@ def _repair_rounds(
         last = score
         if stalled >= REPAIR_STALL:
             break
+        # A round that is no better and whose triangles are an earlier round's (the same
+        # node numbers, the same triangles), its nodes within REPAIR_SAME * h of where they
+        # were then, has come back where the rounds were: a split undone by a collapse, the
+        # next rounds would repeat the cycle.
+        if not better.any():
+            key = _topology(tri)
+            if key in seen:
+                moved = np.hypot(*(p - seen[key]).T)
+                far = moved > 0
+                if not far.any() or np.all(moved[far] <= REPAIR_SAME * relax.h(p[far])):
+                    break
+            seen[key] = p
     if not best_round.any():
         return relax.p, relax.tri, kept, iterations, triangulations
     # Each part from its own best round; the nodes of a part are all in its triangles.
@@ -1114,6 +1144,12 @@ def _repair_rounds(
         return relax.p, relax.tri, kept, iterations, triangulations
     triangulations += 1
     return p, tri, out_kept, iterations, triangulations
+
+
+def _topology(tri: IntArray) -> bytes:
+    """The triangles ``tri`` as a set (each sorted, then the rows), as bytes to compare."""
+    t = np.sort(tri, axis=1)
+    return bytes(t[np.lexsort(t.T[::-1])].astype(np.int64).tobytes())
 
 
 def _restricted(

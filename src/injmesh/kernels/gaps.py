@@ -114,12 +114,22 @@ def thinnest_chords(v, prv, seg, seg_len, v_n, seg_n, wall, radius, cos):  # typ
                     lim = max(radius[i], radius[j]) if wall[i] else r
                     if not d2 <= lim * lim or d2 > look * look and wall[i]:
                         continue
+                    # A pair seen from j already (j came first and saw i: j is a wall vertex,
+                    # or i is one within j's radius) was judged both ways round then: seen
+                    # again, it could not lower a width (strictly), so it is skipped.
+                    if j < i and (wall[j] or wall[i] and d2 <= radius[j] * radius[j]):
+                        continue
                     # A foot on a segment at b lies within the longest segment L of b, so a
                     # partner whose direction from a makes e . n_a <= cos impossible (b's offset
                     # along n_a at most cos |ab| - 2 L) is not judged: the same answers.
                     d = math.sqrt(d2)
                     fwd = dx * v_n[i, 0] + dy * v_n[i, 1] > cos * d - slack
                     bwd = -dx * v_n[j, 0] - dy * v_n[j, 1] > cos * d - slack
+                    # Nor is a side whose chord cannot be thinner than that side's best so far
+                    # or its radius (the caller keeps only chords thinner than the radius): the
+                    # chord's thickness is at least |f - a| >= |a - b| - L.
+                    fwd = fwd and d - slack < min(best_w[i], radius[i])
+                    bwd = bwd and d - slack < min(best_w[j], radius[j])
                     # Both ways round, both segments at the partner (a's own two excluded).
                     for q in range(4):
                         if not (fwd if q < 2 else bwd):
