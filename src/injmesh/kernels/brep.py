@@ -483,6 +483,25 @@ def _nearest_point(x, y, hint, child, start, count, order, lt, box, parent, leaf
     return (-d if inside else d), fx, fy, (order[bj] if bj >= 0 else -1), bj
 
 
+@nb.njit(cache=True, nogil=True)
+def _query_z(qz, lo, hi, g, dz, fz, kz):  # type: ignore[no-untyped-def]
+    """Signed distance, foot and piece of the Z-ordered points ``qz[lo:hi]`` into ``dz``,
+    ``fz``, ``kz`` at the same rows; each search starts from the previous answer's leaf, the
+    first from the root."""
+    stack = np.empty(2 * _STACK)
+    tie_j = np.empty(_TIES, dtype=np.int64)
+    tie_w = np.empty(_TIES, dtype=np.int64)
+    child, start, count, order, lt, box = g[10], g[11], g[12], g[13], g[20], g[21]
+    parent, leaf_of, st = g[22], g[23], g[24]
+    last = -1
+    for s in range(lo, hi):
+        d, fx, fy, k, last = _nearest_point(qz[s, 0], qz[s, 1], last, child, start, count, order,
+                                            lt, box, parent, leaf_of, st, stack, tie_j, tie_w)
+        dz[s] = d
+        fz[s, 0], fz[s, 1] = fx, fy
+        kz[s] = k
+
+
 @nb.njit(cache=True)
 def nearest(q, g):  # type: ignore[no-untyped-def]
     """Signed distance (negative inside), foot point and piece of each point of ``q (n, 2)``.
@@ -502,18 +521,7 @@ def nearest(q, g):  # type: ignore[no-untyped-def]
     dz = np.empty(n)
     fz = np.empty((n, 2))
     kz = np.empty(n, dtype=np.int64)
-    stack = np.empty(2 * _STACK)
-    tie_j = np.empty(_TIES, dtype=np.int64)
-    tie_w = np.empty(_TIES, dtype=np.int64)
-    child, start, count, order, lt, box = g[10], g[11], g[12], g[13], g[20], g[21]
-    parent, leaf_of, st = g[22], g[23], g[24]
-    last = -1
-    for s in range(n):
-        d, fx, fy, k, last = _nearest_point(qz[s, 0], qz[s, 1], last, child, start, count, order,
-                                            lt, box, parent, leaf_of, st, stack, tie_j, tie_w)
-        dz[s] = d
-        fz[s, 0], fz[s, 1] = fx, fy
-        kz[s] = k
+    _query_z(qz, 0, n, g, dz, fz, kz)
     dist = np.empty(n)
     foot = np.empty((n, 2))
     piece = np.empty(n, dtype=np.int64)
@@ -525,21 +533,6 @@ def nearest(q, g):  # type: ignore[no-untyped-def]
     return dist, foot, piece
 
 
-@nb.njit(cache=True, nogil=True)
-def _distances_z(qz, lo, hi, g, out):  # type: ignore[no-untyped-def]
-    """Signed distances of the Z-ordered points ``qz[lo:hi]`` into ``out[lo:hi]``, as
-    :func:`nearest` finds them, the first search starting from the root."""
-    stack = np.empty(2 * _STACK)
-    tie_j = np.empty(_TIES, dtype=np.int64)
-    tie_w = np.empty(_TIES, dtype=np.int64)
-    child, start, count, order, lt, box = g[10], g[11], g[12], g[13], g[20], g[21]
-    parent, leaf_of, st = g[22], g[23], g[24]
-    last = -1
-    for s in range(lo, hi):
-        d, _, _, _, last = _nearest_point(qz[s, 0], qz[s, 1], last, child, start, count, order,
-                                          lt, box, parent, leaf_of, st, stack, tie_j, tie_w)
-        out[s] = d
-    return out
 
 
 def signed_distance(q, g):  # type: ignore[no-untyped-def]
@@ -558,7 +551,9 @@ def signed_distance(q, g):  # type: ignore[no-untyped-def]
     zorder = _morton_order(q)
     qz = np.ascontiguousarray(q[zorder])
     dz = np.empty(n)
-    threads.each(n, lambda lo, hi: _distances_z(qz, lo, hi, g, dz))
+    fz = np.empty((n, 2))
+    kz = np.empty(n, dtype=np.int64)
+    threads.each(n, lambda lo, hi: _query_z(qz, lo, hi, g, dz, fz, kz))
     out = np.empty(n)
     out[zorder] = dz
     return out
