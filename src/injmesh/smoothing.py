@@ -156,7 +156,6 @@ from .triangulation import (
     delaunay,
     delaunay_with_neighbours,
     inside_triangles,
-    recover_segments,
 )
 
 FloatArray = NDArray[np.float64]
@@ -1520,8 +1519,7 @@ def _recover_interfaces(
         idx = np.flatnonzero(alive)
         inv = np.full(len(p), -1, dtype=np.intp)
         inv[idx] = np.arange(len(idx))
-        full, _ = recover_segments(p[idx], delaunay(p[idx]), inv[required])
-        tri = idx[inside_triangles(p[idx], full, domain.sdf, inv[walls])]
+        tri = idx[constrained_triangles(p[idx], domain.sdf, inv[walls], inv[seg])]
         count += 1
     return p, tri, seg, group, node_group, count
 

@@ -190,7 +190,8 @@ def inside_polygon(q: FloatArray, a: FloatArray, b: FloatArray) -> NDArray[np.bo
 
 
 def constrained_triangles(
-    points: FloatArray, sdf: Callable[[FloatArray], FloatArray], walls: IntArray
+    points: FloatArray, sdf: Callable[[FloatArray], FloatArray], walls: IntArray,
+    interior: IntArray | None = None,
 ) -> IntArray:
     """The triangles inside the boundary segments ``walls``, each segment an edge.
 
@@ -198,9 +199,11 @@ def constrained_triangles(
     flips (:func:`recover_segments`), then the inside is found by flood fill from the segments
     (:func:`classify_by_walls`).  Where a node lies exactly on a segment, recovery fails and
     that region is judged by its centroids; the mesh's own check then reports the segment.
+    ``interior`` segments (interior curves) become edges too but do not bound the inside.
     """
     tri, nbr = delaunay_with_neighbours(points)
-    full, _, nbr = _recover_segments(points, tri, walls, nbr)
+    required = walls if interior is None else np.concatenate([walls, interior])
+    full, _, nbr = _recover_segments(points, tri, required, nbr)
     return inside_triangles(points, full, sdf, walls, nbr)
 
 
