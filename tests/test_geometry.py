@@ -402,14 +402,14 @@ def test_plain_corners_near_fixed_points_are_the_fixed_points() -> None:
 def test_corners_of_all_loops_refined_together_as_one_by_one() -> None:
     """One bisection over the corners of every loop gives each loop's own result, bit for bit."""
     from injmesh.geometry import as_domain
-    from injmesh.geometry.tracing import corner_brackets, detect_corners, grid_spacing, refine_corners
+    from injmesh.geometry.tracing import corner_brackets, grid_spacing, refine_corners
 
     case = CASES["square_with_four_holes"]
     dom = as_domain(case.sdf, bbox=case.bbox)
     spacing = grid_spacing(dom.bbox, np.inf)
     loops = dom.boundary_loops(spacing)
-    one_by_one = np.concatenate([detect_corners(loop, spacing, refine=dom) for loop in loops])
     brackets = [corner_brackets(loop, spacing) for loop in loops]
+    one_by_one = np.concatenate([refine_corners(dom, b[1], b[2]) for b in brackets])
     together = refine_corners(dom, np.concatenate([b[1] for b in brackets]),
                               np.concatenate([b[2] for b in brackets]))
     assert len(together) == 4 and np.array_equal(one_by_one, together)

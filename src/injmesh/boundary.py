@@ -1111,13 +1111,14 @@ def sharp_junctions(
         return np.empty((0, 2)), tuple(new_pieces)
     diam = domain.diameter
     eps = 10 * tol.ON_BOUNDARY * diam
-    others = np.concatenate([domain.corners().reshape(-1, 2), junctions])
+    corners = domain.corners().reshape(-1, 2)
+    others = np.concatenate([corners, junctions])
     normal = domain.gradient(junctions)
     normal = normal / np.maximum(np.hypot(*normal.T), 1e-300)[:, None]
     for j, tip in enumerate(junctions):
         d_other = np.hypot(*(others - tip).T)
         d_other = d_other[d_other > eps]
-        if np.any(np.hypot(*(domain.corners().reshape(-1, 2) - tip).T) <= eps):
+        if np.any(np.hypot(*(corners - tip).T) <= eps):
             continue  # a domain corner: its walls' directions are not the gradient's
         room_b = 0.5 * float(d_other.min()) if len(d_other) else diam
         wall_dir = np.array([-normal[j, 1], normal[j, 0]])

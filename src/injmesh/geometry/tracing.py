@@ -215,24 +215,16 @@ def order_cycles(succ: np.ndarray) -> list[np.ndarray]:
     return cycles
 
 
-def detect_corners(loop: FloatArray, spacing: float, refine: Domain | None = None) -> FloatArray:
-    """Sharp corners of a closed, projected boundary polyline.
+def corner_brackets(loop: FloatArray, spacing: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Sharp corners of a closed, projected boundary polyline (vertices of ``loop``, ``(c, 2)``)
+    and the vertices on either side of each, ``(c, 2)`` twice, that bracket it along the
+    boundary (for :func:`refine_corners`).
 
     The turning angle is measured over chords of about 3 and 6 grid spacings.  At a corner both
     chords see the same turn; on a smooth curve the longer chord sees twice the turn.  A vertex
     is a corner where the short-chord turn exceeds ``CORNER_ANGLE``, is at least 3/4 of the
-    long-chord turn and is a local maximum.  With ``refine``, the corner is then located by
-    :func:`refine_corners` between a vertex on either side.
+    long-chord turn and is a local maximum.
     """
-    found, a, b = corner_brackets(loop, spacing)
-    if refine is None:
-        return found
-    return refine_corners(refine, a, b)
-
-
-def corner_brackets(loop: FloatArray, spacing: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """The corners :func:`detect_corners` finds on ``loop`` (vertices, ``(c, 2)``) and the
-    vertices on either side of each, ``(c, 2)`` twice, that bracket it along the boundary."""
     n = len(loop)
     none = np.empty((0, 2))
     if n < 16:
