@@ -89,7 +89,18 @@ def inside_triangles(
     walls: IntArray | None = None,
     neighbours: NDArray[np.int64] | None = None,
 ) -> IntArray:
-    """Keep the triangles that lie inside the domain.
+    """Keep the triangles that lie inside the domain (those :func:`inside_mask` marks)."""
+    return np.asarray(triangles)[inside_mask(points, triangles, sdf, walls, neighbours)]
+
+
+def inside_mask(
+    points: FloatArray,
+    triangles: IntArray,
+    sdf: Callable[[FloatArray], FloatArray],
+    walls: IntArray | None = None,
+    neighbours: NDArray[np.int64] | None = None,
+) -> NDArray[np.bool_]:
+    """Which triangles lie inside the domain.
 
     With ``walls``, the boundary segments ``(k, 2)`` actually meshed (domain on their left), the
     triangles are classified topologically (:func:`classify_by_walls`): those reached from the
@@ -127,7 +138,7 @@ def inside_triangles(
     # A flat triangle of collinear nodes on a straight boundary has its centroid on the
     # boundary: the sign test alone would keep it.
     keep &= ~flat
-    return np.asarray(triangles)[keep]
+    return keep
 
 
 def _tri_pairs(pairs: IntArray, n: int) -> NDArray[np.int64]:

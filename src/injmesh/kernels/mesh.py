@@ -384,6 +384,45 @@ def neighbours(tri, n):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
+def by_least_vertex(tri, n):  # type: ignore[no-untyped-def]
+    """The rows of ``tri`` ordered by their least vertex, ties in row order: what
+    ``np.argsort(tri.min(axis=1), kind="stable")`` gives, by a counting sort (linear in the
+    rows; vertices ``0 .. n-1``)."""
+    m = tri.shape[0]
+    start = np.zeros(n + 1, dtype=np.int64)
+    for t in range(m):
+        start[min(tri[t, 0], tri[t, 1], tri[t, 2]) + 1] += 1
+    for v in range(n):
+        start[v + 1] += start[v]
+    order = np.empty(m, dtype=np.int64)
+    for t in range(m):
+        v = min(tri[t, 0], tri[t, 1], tri[t, 2])
+        order[start[v]] = t
+        start[v] += 1
+    return order
+
+
+@njit(cache=True)
+def kept_neighbours(nbr, rows):  # type: ignore[no-untyped-def]
+    """The neighbour table (int32) of the triangles ``rows`` of a triangulation, in that order,
+    from the whole triangulation's table ``nbr``: across each edge the other triangle's place
+    in ``rows``, -1 where it is not among them (or where there is none).
+
+    Each edge of a triangulation has at most two triangles, so this is :func:`neighbours` of
+    the triangles kept, without finding the twins again."""
+    pos = np.full(nbr.shape[0], -1, dtype=np.int32)
+    for a in range(rows.shape[0]):
+        pos[rows[a]] = a
+    out = np.empty((rows.shape[0], 3), dtype=np.int32)
+    for a in range(rows.shape[0]):
+        t = rows[a]
+        for k in range(3):
+            u = nbr[t, k]
+            out[a, k] = pos[u] if u >= 0 else -1
+    return out
+
+
+@njit(cache=True)
 def boundary_edges(tri, n):  # type: ignore[no-untyped-def]
     """Edges in exactly one triangle, oriented as there; in the order sides (0,1), (1,2),
     (2,0) of all triangles (the order of the concatenation it replaces)."""

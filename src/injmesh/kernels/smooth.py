@@ -239,25 +239,54 @@ def stable_scale(p, nodes, indptr, adj, eid, ld, step, gain, out):  # type: igno
     """
     for a in range(nodes.shape[0]):
         i = nodes[a]
-        jxx = 0.0
-        jxy = 0.0
-        jyy = 0.0
-        for e in range(indptr[i], indptr[i + 1]):
-            j = adj[e]
-            if j < 0:
-                continue
-            vx = p[i, 0] - p[j, 0]
-            vy = p[i, 1] - p[j, 1]
-            d = ld[eid[e]]
-            lc = max(_norm(vx, vy), 1e-300)
-            across = max(0.0, 1.0 / d - 1.0 / lc)  # across a stretched bar, else 0
-            w = (1.0 / d - across) / (lc * lc)
-            jxx += across + w * vx * vx
-            jyy += across + w * vy * vy
-            jxy += w * vx * vy
-        half = 0.5 * (jxx - jyy)
-        g = step[i] * (0.5 * (jxx + jyy) + math.sqrt(half * half + jxy * jxy))
-        out[i] = gain / g if g > gain else 1.0
+        out[i] = _stable_one(p, i, indptr, adj, eid, ld, step[i], gain)
+
+
+@njit(cache=True, inline="always")
+def _stable_one(p, i, indptr, adj, eid, ld, step, gain):  # type: ignore[no-untyped-def]
+    """:func:`stable_scale`'s factor of node i, whose step is ``step``."""
+    jxx = 0.0
+    jxy = 0.0
+    jyy = 0.0
+    for e in range(indptr[i], indptr[i + 1]):
+        j = adj[e]
+        if j < 0:
+            continue
+        vx = p[i, 0] - p[j, 0]
+        vy = p[i, 1] - p[j, 1]
+        d = ld[eid[e]]
+        lc = max(_norm(vx, vy), 1e-300)
+        across = max(0.0, 1.0 / d - 1.0 / lc)  # across a stretched bar, else 0
+        w = (1.0 / d - across) / (lc * lc)
+        jxx += across + w * vx * vx
+        jyy += across + w * vy * vy
+        jxy += w * vx * vy
+    half = 0.5 * (jxx - jyy)
+    g = step * (0.5 * (jxx + jyy) + math.sqrt(half * half + jxy * jxy))
+    return gain / g if g > gain else 1.0
+
+
+@njit(cache=True, nogil=True)
+def renew_sizes(p, nodes, indptr, adj, eid, ld, dt, gain, mean, hbar, damp):  # type: ignore[no-untyped-def]
+    """After the bars of ``nodes`` changed length (and, with ``mean``, their ld): each node's
+    hbar (:func:`mean_bar_size_of`, only with ``mean``) and then its stability limit
+    (:func:`stable_scale` with step ``dt * hbar``), in one pass over its row.  Node i's
+    numbers come from its own row only, so the pass gives what the two kernels give one after
+    the other, bit for bit, and chunks of ``nodes`` may run on several threads."""
+    for a in range(nodes.shape[0]):
+        i = nodes[a]
+        if mean:
+            _mean_one(indptr, eid, ld, i, hbar)
+        damp[i] = _stable_one(p, i, indptr, adj, eid, ld, dt * hbar[i], gain)
+
+
+def threaded_renew_sizes(p, nodes, indptr, adj, eid, ld, dt, gain, mean, hbar, damp):  # type: ignore[no-untyped-def]
+    """:func:`renew_sizes` over chunks of ``nodes`` on several threads (same numbers)."""
+    if not threads.worth(len(nodes)):
+        renew_sizes(p, nodes, indptr, adj, eid, ld, dt, gain, mean, hbar, damp)
+        return
+    threads.each(len(nodes), lambda lo, hi: renew_sizes(p, nodes[lo:hi], indptr, adj, eid, ld, dt,
+                                                       gain, mean, hbar, damp))
 
 
 @njit(cache=True, nogil=True)
@@ -444,15 +473,35 @@ def row_bars(indptr, eid, nodes, seen):  # type: ignore[no-untyped-def]
 def mean_bar_size_of(indptr, eid, ld, nodes, out):  # type: ignore[no-untyped-def]
     """:func:`mean_bar_size` for ``nodes`` only, written to ``out[nodes]`` (rows with bars)."""
     for a in range(nodes.shape[0]):
-        v = nodes[a]
-        s = 0.0
-        d = 0
-        for e in range(indptr[v], indptr[v + 1]):
-            if eid[e] >= 0:
-                s += ld[eid[e]]
-                d += 1
-        if d > 0:
-            out[v] = s / d
+        _mean_one(indptr, eid, ld, nodes[a], out)
+
+
+@njit(cache=True, inline="always")
+def _mean_one(indptr, eid, ld, v, out):  # type: ignore[no-untyped-def]
+    s = 0.0
+    d = 0
+    for e in range(indptr[v], indptr[v + 1]):
+        if eid[e] >= 0:
+            s += ld[eid[e]]
+            d += 1
+    if d > 0:
+        out[v] = s / d
+
+
+@njit(cache=True)
+def moved_bars(indptr, adj, eid, bars, p, nodes, mark, seen, graded):  # type: ignore[no-untyped-def]
+    """What a connectivity update renews around the nodes that moved: :func:`ring_one` of
+    ``nodes`` (the nodes whose bars changed length), and with ``graded`` (an h that is not
+    constant) the distinct bars of their rows (:func:`row_bars`) and those bars' midpoints,
+    where h gives their new ld (none without), in one call."""
+    near = ring_one(indptr, adj, nodes, mark)
+    b = row_bars(indptr, eid, nodes, seen) if graded else np.empty(0, dtype=np.int64)
+    mid = np.empty((b.shape[0], 2))
+    for r in range(b.shape[0]):
+        i, j = bars[b[r], 0], bars[b[r], 1]
+        mid[r, 0] = 0.5 * (p[i, 0] + p[j, 0])
+        mid[r, 1] = 0.5 * (p[i, 1] + p[j, 1])
+    return near, b, mid
 
 
 @njit(cache=True)
