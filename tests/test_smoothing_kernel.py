@@ -352,9 +352,9 @@ def test_node_lists_follow_flips_in_place() -> None:
     """After nodes move and Lawson flips change some triangles, the padded node lists updated
     in place (pad_rows, flip_update) hold exactly the new triangulation's neighbours, each
     entry pointing at a bar with those two ends."""
-    from injmesh.kernels.delaunay import flip_to_delaunay
+    from injmesh.kernels.delaunay import flips_logged
     from injmesh.kernels.mesh import neighbours
-    from injmesh.kernels.smooth import changed_rows, flip_diff, flip_update, pad_rows
+    from injmesh.kernels.smooth import flip_diff, flip_update, pad_rows
 
     key = np.int64(2**31)
 
@@ -377,14 +377,29 @@ def test_node_lists_follow_flips_in_place() -> None:
         vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
         before = t32.copy()
         q = p + rng.normal(0.0, 0.02, p.shape)
-        if flip_to_delaunay(q, t32, nbr, np.zeros(t32.shape, dtype=np.uint8), vt) <= 0:
+        res, log = flips_logged(q, t32, nbr, np.zeros(t32.shape, dtype=np.uint8), vt,
+                                np.empty(0, dtype=np.int32), True)
+        if res <= 0:
             continue  # an inverted triangle (the caller re-triangulates) or nothing to flip
-        changed = changed_rows(t32, before)
+        assert len(log) == res
+        changed = np.flatnonzero((t32 != before).any(axis=1))
         old_e, new_e = side_keys(before[changed]), side_keys(t32[changed])
         removed, added = np.setdiff1d(old_e, new_e), np.setdiff1d(new_e, old_e)
         assert len(removed) == len(added) > 0
-        # The compiled difference is the sets' difference, in the same (sorted) order.
-        removed2, added2 = flip_diff(before, t32, changed)
+        # The difference followed from the log is the sets' difference, in sorted order, and
+        # its rows hold every row that changed (a row flipped back and forth may be listed).
+        rows, removed2, added2 = flip_diff(log[:, :2].ravel(), log[:, 2:4], log[:, 4:6])
+        assert set(changed.tolist()) <= set(rows.tolist())
+        assert np.array_equal(rows, np.unique(log[:, :2]))
+        # The same from the rows' contents before and after (a patch's rows replaced).
+
+        def sides(t: np.ndarray) -> np.ndarray:
+            return np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+
+        every = np.arange(len(t32))
+        rows3, removed3, added3 = flip_diff(every, sides(before), sides(t32))
+        assert np.array_equal(rows3, every)
+        assert np.array_equal(removed3, removed2) and np.array_equal(added3, added2)
         assert np.array_equal(removed2, np.stack([removed // key, removed % key], axis=1))
         assert np.array_equal(added2, np.stack([added // key, added % key], axis=1))
         ids = flip_update(indptr, adj, eid, bars, removed2, added2)

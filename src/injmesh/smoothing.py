@@ -553,10 +553,10 @@ class _Relaxation:
         more than the steps.  An edge between nodes that drifted less stays as it was (at
         worst nearly Delaunay) until one of them drifts further; ``final`` flips everywhere.
         """
-        from .kernels.delaunay import flip_rows_to_delaunay
+        from .kernels.delaunay import flip_rows_to_delaunay, flips_logged
 
         moved: IntArray | None = None
-        before: Int32Array | None = None
+        log: NDArray[np.int64] | None = None
         if everywhere and self._active is not None:
             # Only the repair's active nodes moved: the flips start from their triangles.
             rows = np.flatnonzero(self._active[self._t32].any(axis=1)).astype(np.int32)
@@ -565,14 +565,14 @@ class _Relaxation:
             res = self._k_flip(self.p, self._t32, self._nbr, self._con, self._vt)
         else:
             moved, rows = self._k.drifted(self.p, self.anchor, self.hbar, LOCAL_DRIFT, self._t32)
-            before = self._t32.copy()
-            res = int(flip_rows_to_delaunay(self.p, self._t32, self._nbr, self._con, self._vt, rows))
+            res, log = flips_logged(self.p, self._t32, self._nbr, self._con, self._vt, rows, False)
+            res = int(res)
         if res < 0:
             self._from_scratch()
         elif res == 0 and moved is not None:
             # No flip: the node lists stay; only the moved nodes' bars and anchors are renewed.
             self._refresh(moved)
-        elif moved is not None and before is not None and self._flipped(before, moved):
+        elif moved is not None and log is not None and self._flipped(_flip_changes(log), moved):
             pass
         else:
             # No flip keeps the node lists (the usual case once the nodes settle).
@@ -585,11 +585,12 @@ class _Relaxation:
             raise _PatchInverted
         self._set_triangles(*_triangulated(self.domain, self.p, self.walls))
 
-    def _flipped(self, before: Int32Array, moved: IntArray) -> bool:
-        """Apply the flips that turned ``before`` into the current triangles to the node lists
-        in place (``kernels.smooth.flip_update``) and renew the nodes they touched; False when
-        that cannot be done (a row out of free slots), for a rebuild."""
-        added = self._relink(before)
+    def _flipped(self, changes: _Changes, moved: IntArray) -> bool:
+        """Apply the change of triangles ``changes`` (:func:`_flip_changes`,
+        :func:`_row_changes`) to the node lists in place (``kernels.smooth.flip_update``) and
+        renew the nodes they touched; False when that cannot be done (a row out of free
+        slots), for a rebuild."""
+        added = self._relink(changes)
         if added is None:
             return False
         # The moved nodes and the flips' corners: their bars' ld, hbar, flags and anchors.
@@ -712,12 +713,14 @@ class _Relaxation:
         if self._active is not None:
             self.retriangulate(everywhere=True)
             return self.tri
-        before = self._t32.copy()
-        res = self._k_flip(self.p, self._t32, self._nbr, self._con, self._vt)
+        from .kernels.delaunay import flips_logged
+
+        res, log = flips_logged(self.p, self._t32, self._nbr, self._con, self._vt,
+                                np.empty(0, dtype=np.int32), True)
         if res < 0:
             self._from_scratch()
             return self.tri
-        if res > 0 and self._relink(before) is None:
+        if res > 0 and self._relink(_flip_changes(log)) is None:
             self._connect(rebuild=True)
             return self.tri
         # The anchors move to the positions: d0 + drift stays an upper bound of d there.
@@ -727,13 +730,12 @@ class _Relaxation:
         self._stale = True
         return self.tri
 
-    def _relink(self, before: Int32Array) -> NDArray[np.int64] | None:
-        """The node lists, bars and ``tri`` follow the flips that turned ``before`` into the
-        current triangles (``kernels.smooth.flip_update``, in place); a constant h's ld of
+    def _relink(self, changes: _Changes) -> NDArray[np.int64] | None:
+        """The node lists, bars and ``tri`` follow the change of triangles ``changes``
+        (``kernels.smooth.flip_diff``, then ``flip_update``, in place); a constant h's ld of
         the new bars too.  Returns the new edges ``(k, 2)``, or None when that cannot be done
         (a row out of free slots), for a rebuild."""
-        changed = self._k.changed_rows(self._t32, before)
-        removed, added = self._k.flip_diff(before, self._t32, changed)
+        changed, removed, added = self._k.flip_diff(*changes)
         if len(removed) != len(added):
             return None
         indptr, adj, eid, ld = self._csr
@@ -746,6 +748,25 @@ class _Relaxation:
         rows = np.asarray(changed, dtype=np.intp)
         self.tri[rows] = self._t32[rows]
         return np.asarray(added)
+
+
+#: A change of some triangle rows: the rows (repeats allowed), the edges that went and the
+#: edges that came, as node pairs with repeats (``kernels.smooth.flip_diff``).
+_Changes = tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]
+
+
+def _flip_changes(log: NDArray[np.int64]) -> _Changes:
+    """The change made by the flips of ``log`` (``kernels.delaunay.flips_logged``)."""
+    return np.ascontiguousarray(log[:, :2]).ravel(), log[:, 2:4].copy(), log[:, 4:6].copy()
+
+
+def _row_changes(rows: IntArray, before: Int32Array, after: Int32Array) -> _Changes:
+    """The change of the triangle ``rows`` from ``before`` to ``after`` (their contents)."""
+
+    def sides(t: Int32Array) -> NDArray[np.int64]:
+        return np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]).astype(np.int64)
+
+    return np.asarray(rows, dtype=np.int64), sides(before), sides(after)
 
 
 def _inside_reach(domain: Domain) -> float:
@@ -951,12 +972,12 @@ def _settle(relax: _Relaxation) -> bool:
     # re-triangulation; a whole-mesh rebuild costs ~1 s at 1e6 nodes.
     from .kernels.mesh import renew_neighbours
 
-    old_tri = relax._t32.copy()
+    old_rows = relax._t32[rows]
     relax._t32[rows] = nodes[state.tri].astype(np.int32)
     renew_neighbours(relax._t32, relax._nbr, rows)
     relax._vt[relax._t32[rows].ravel()] = np.repeat(rows.astype(np.int32), 3)
     moved = nodes[state._moving]
-    if not relax._flipped(old_tri, moved.astype(np.intp)):
+    if not relax._flipped(_row_changes(rows, old_rows, relax._t32[rows]), moved.astype(np.intp)):
         relax._set_triangles(relax._t32.astype(np.intp))
     return False
 

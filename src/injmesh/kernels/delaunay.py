@@ -250,10 +250,12 @@ def _edge_illegal(pts, tri, nbr, con, t, k):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _legalize(pts, tri, nbr, con, vt, stack, sp, cap):  # type: ignore[no-untyped-def]
+def _legalize(pts, tri, nbr, con, vt, stack, sp, cap, log=None):  # type: ignore[no-untyped-def]
     """Lawson flips from a stack of edges (t * 3 + k) until all are locally Delaunay.
 
-    Returns (stack, number of flips); -1 flips when ``cap`` flips were exceeded.
+    Returns (stack, number of flips); -1 flips when ``cap`` flips were exceeded.  ``log``
+    (optional, a list) gets ``(t, u, b, c, a, d)`` for each flip: rows t and u changed, edge
+    b-c gave way to a-d.
     """
     flips = 0
     while sp > 0:
@@ -266,6 +268,10 @@ def _legalize(pts, tri, nbr, con, vt, stack, sp, cap):  # type: ignore[no-untype
         if not _edge_illegal(pts, tri, nbr, con, t, k):
             continue
         u = _flip(tri, nbr, con, vt, t, k)
+        if log is not None:
+            # t = (a, b, d), u = (a, d, c) now: edge b-c gave way to a-d.
+            log.append((np.int64(t), np.int64(u), np.int64(tri[t, 1]), np.int64(tri[u, 2]),
+                        np.int64(tri[t, 0]), np.int64(tri[t, 2])))
         flips += 1
         if flips > cap:
             return stack, -1
@@ -804,14 +810,15 @@ def find_edge(tri, nbr, vt, i, j):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def flip_to_delaunay(points, tri, nbr, constrained, vt):  # type: ignore[no-untyped-def]
+def flip_to_delaunay(points, tri, nbr, constrained, vt, log=None):  # type: ignore[no-untyped-def]
     """Lawson flips until every unconstrained edge is locally Delaunay.
 
     For use after the vertices moved a little.  Works on the live structure (with ghosts: a
     hull vertex that became reflex is filled in) and on compact arrays (``-1`` neighbours, the
     hull left as it is).  Returns the number of flips, or ``-(10 + t)`` when triangle row t is
     inverted or flat (no flip is made then: the caller should rebuild), or ERR_LOOP when the
-    flip cap (50 per triangle) is reached.
+    flip cap (50 per triangle) is reached.  ``log``: see :func:`_legalize` (and
+    :func:`flips_logged`).
     """
     m = tri.shape[0]
     for t in range(m):
@@ -831,7 +838,7 @@ def flip_to_delaunay(points, tri, nbr, constrained, vt):  # type: ignore[no-unty
         for k in range(3):
             if nbr[t, k] > t and _edge_illegal(points, tri, nbr, constrained, t, k):
                 stack[0] = 3 * t + k
-                stack, f = _legalize(points, tri, nbr, constrained, vt, stack, 1, cap - flips)
+                stack, f = _legalize(points, tri, nbr, constrained, vt, stack, 1, cap - flips, log)
                 if f < 0:
                     return ERR_LOOP
                 flips += f
@@ -839,7 +846,7 @@ def flip_to_delaunay(points, tri, nbr, constrained, vt):  # type: ignore[no-unty
 
 
 @njit(cache=True)
-def flip_rows_to_delaunay(points, tri, nbr, constrained, vt, rows):  # type: ignore[no-untyped-def]
+def flip_rows_to_delaunay(points, tri, nbr, constrained, vt, rows, log=None):  # type: ignore[no-untyped-def]
     """:func:`flip_to_delaunay` started from the edges of ``rows`` only.
 
     For use after only some vertices moved, the rest of the mesh being Delaunay: every edge
@@ -872,11 +879,31 @@ def flip_rows_to_delaunay(points, tri, nbr, constrained, vt, rows):  # type: ign
             u = nbr[t, k]
             if u >= 0 and not swept[u] and _edge_illegal(points, tri, nbr, constrained, t, k):
                 stack[0] = 3 * t + k
-                stack, f = _legalize(points, tri, nbr, constrained, vt, stack, 1, cap - flips)
+                stack, f = _legalize(points, tri, nbr, constrained, vt, stack, 1, cap - flips, log)
                 if f < 0:
                     return ERR_LOOP
                 flips += f
     return flips
+
+
+@njit(cache=True)
+def flips_logged(points, tri, nbr, constrained, vt, rows, everywhere):  # type: ignore[no-untyped-def]
+    """:func:`flip_rows_to_delaunay` (with ``everywhere``: :func:`flip_to_delaunay`, ``rows``
+    unused), and what the flips did: ``(k, 6)`` int64 rows ``(t, u, b, c, a, d)``, one per flip
+    in order (rows t and u changed, edge b-c gave way to a-d).  A caller that keeps lists
+    derived from the triangles follows the flips from this, instead of comparing every row
+    with a copy kept from before."""
+    log = [(np.int64(0), np.int64(0), np.int64(0), np.int64(0), np.int64(0), np.int64(0))]
+    log.pop()
+    if everywhere:
+        res = flip_to_delaunay(points, tri, nbr, constrained, vt, log)
+    else:
+        res = flip_rows_to_delaunay(points, tri, nbr, constrained, vt, rows, log)
+    out = np.empty((len(log), 6), dtype=np.int64)
+    for r in range(len(log)):
+        for c in range(6):
+            out[r, c] = log[r][c]
+    return res, out
 
 
 @njit(cache=True)

@@ -567,18 +567,6 @@ def flip_update(indptr, adj, eid, bars, removed, added):  # type: ignore[no-unty
     return ids
 
 
-@njit(cache=True)
-def changed_rows(a, b):  # type: ignore[no-untyped-def]
-    """Rows of the ``(m, 3)`` arrays that differ (the triangles flips replaced)."""
-    out = np.empty(a.shape[0], dtype=np.int64)
-    k = 0
-    for t in range(a.shape[0]):
-        if a[t, 0] != b[t, 0] or a[t, 1] != b[t, 1] or a[t, 2] != b[t, 2]:
-            out[k] = t
-            k += 1
-    return out[:k]
-
-
 @njit(cache=True, nogil=True)
 def _mark_drifted(p, anchor, hbar, tol, mark):  # type: ignore[no-untyped-def]
     for i in range(p.shape[0]):
@@ -800,47 +788,48 @@ def restar(p, tri, start, corner, q, star, moved):  # type: ignore[no-untyped-de
 
 
 @njit(cache=True)
-def flip_diff(before, after, rows):  # type: ignore[no-untyped-def]
-    """The edges of ``before[rows]`` that ``after[rows]`` no longer has, and the new ones,
-    each as sorted distinct ``(i, j)`` rows (i < j): what flips replaced.  A sort and a merge
-    of the rows' side keys, ``i * 2**31 + j``."""
-    m = rows.shape[0]
-    big = np.int64(1) << np.int64(31)
-    ko = np.empty(3 * m, dtype=np.int64)
-    kn = np.empty(3 * m, dtype=np.int64)
-    for a in range(m):
-        t = rows[a]
-        for k in range(3):
-            u, v = np.int64(before[t, k]), np.int64(before[t, (k + 1) % 3])
-            ko[3 * a + k] = min(u, v) * big + max(u, v)
-            u, v = np.int64(after[t, k]), np.int64(after[t, (k + 1) % 3])
-            kn[3 * a + k] = min(u, v) * big + max(u, v)
-    ko.sort()
-    kn.sort()
-    removed = np.empty((3 * m, 2), dtype=np.int64)
-    added = np.empty((3 * m, 2), dtype=np.int64)
+def flip_diff(rows, gone, made):  # type: ignore[no-untyped-def]
+    """What a change of some triangle rows did in all: ``rows`` (the rows changed, repeats
+    allowed) sorted and distinct, and the edges removed and the edges added, each as sorted
+    distinct ``(i, j)`` rows (i < j) in increasing order.
+
+    ``gone`` and ``made`` are node pairs ``(k, 2)`` with repeats: the edges each flip removed
+    and made (``kernels.delaunay.flips_logged``), or the sides of the rows before and after a
+    change of them.  An edge's count (+1 each time in ``gone``, -1 in ``made``) is +1 or +2
+    when it is gone (it alternates between removed and made; two rows held it), -1 or -2 when
+    it is new, and 0 when it is there before and after (a flip undid another; a side the rows
+    keep).  A sort of the edges' keys ``i * 2**31 + j`` groups each edge."""
+    out_rows = np.sort(rows.astype(np.int64))
     nr = 0
-    na = 0
-    i = 0
-    j = 0
-    n = 3 * m
-    while i < n or j < n:
-        if j >= n or (i < n and ko[i] < kn[j]):
-            key = ko[i]
-            removed[nr, 0], removed[nr, 1] = key // big, key % big
+    for r in range(out_rows.shape[0]):
+        if r == 0 or out_rows[r] != out_rows[r - 1]:
+            out_rows[nr] = out_rows[r]
             nr += 1
-            while i < n and ko[i] == key:
-                i += 1
-        elif i >= n or kn[j] < ko[i]:
-            key = kn[j]
-            added[na, 0], added[na, 1] = key // big, key % big
-            na += 1
-            while j < n and kn[j] == key:
-                j += 1
-        else:
-            key = ko[i]
-            while i < n and ko[i] == key:
-                i += 1
-            while j < n and kn[j] == key:
-                j += 1
-    return removed[:nr].copy(), added[:na].copy()
+    big = np.int64(1) << np.int64(31)
+    ng, nm = gone.shape[0], made.shape[0]
+    keys = np.empty(ng + nm, dtype=np.int64)
+    for r in range(ng):
+        a, b = np.int64(gone[r, 0]), np.int64(gone[r, 1])
+        keys[r] = min(a, b) * big + max(a, b)
+    for r in range(nm):
+        a, b = np.int64(made[r, 0]), np.int64(made[r, 1])
+        keys[ng + r] = min(a, b) * big + max(a, b)
+    order = np.argsort(keys, kind="mergesort")
+    removed = np.empty((ng, 2), dtype=np.int64)
+    added = np.empty((nm, 2), dtype=np.int64)
+    n_removed = 0
+    n_added = 0
+    s = 0
+    while s < ng + nm:
+        key = keys[order[s]]
+        count = 0
+        while s < ng + nm and keys[order[s]] == key:
+            count += 1 if order[s] < ng else -1
+            s += 1
+        if count > 0:
+            removed[n_removed, 0], removed[n_removed, 1] = key // big, key % big
+            n_removed += 1
+        elif count < 0:
+            added[n_added, 0], added[n_added, 1] = key // big, key % big
+            n_added += 1
+    return out_rows[:nr].copy(), removed[:n_removed].copy(), added[:n_added].copy()
