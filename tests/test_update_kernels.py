@@ -105,3 +105,18 @@ def test_fused_update_kernels_give_the_separate_kernels_numbers(
         renew_sizes(p, near, indptr, adj, eid, ld, DT, STABLE_GAIN, graded, hbar, damp)
     assert np.array_equal(hbar, hbar_ref)
     assert np.array_equal(damp, damp_ref)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(0, 200), max_size=80), st.lists(st.integers(0, 220), max_size=12),
+       st.booleans())
+def test_nodes_joined_in_place_are_the_union(nodes: list[int], more: list[int], shuffled: bool) -> None:
+    """``smoothing._with_nodes`` (the moved nodes and the flips' corners of an update) is
+    ``np.union1d``, for sorted lists (inserted in place) and unsorted ones (a patch's)."""
+    from injmesh.smoothing import _with_nodes
+
+    a = np.unique(np.array(nodes, dtype=np.intp))
+    if shuffled:
+        a = np.random.default_rng(len(nodes)).permutation(a)
+    b = np.array(more, dtype=np.int64)
+    assert np.array_equal(_with_nodes(a, b), np.union1d(a, b))
