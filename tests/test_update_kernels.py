@@ -120,3 +120,42 @@ def test_nodes_joined_in_place_are_the_union(nodes: list[int], more: list[int], 
         a = np.random.default_rng(len(nodes)).permutation(a)
     b = np.array(more, dtype=np.int64)
     assert np.array_equal(_with_nodes(a, b), np.union1d(a, b))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 10**6), st.integers(1, 300), st.booleans(), st.floats(0.0, 0.5))
+def test_depth_bounds_are_the_vectorised_test(seed: int, n: int, exact: bool, nan_share: float) -> None:
+    """``depth_bounds`` + ``mark_deep`` give ``_inside_depth``'s NumPy form bit for bit: the
+    bound ``d0 + |p - anchor|`` kept where it is below ``-DEEP * hbar``, every other node (and
+    any with a NaN anchor, or all without ``exact``) asked, then the deep flags."""
+    from injmesh.kernels.smooth import depth_bounds, mark_deep
+    from injmesh.smoothing import DEEP
+
+    rng = np.random.default_rng(seed)
+    p = rng.random((n, 2))
+    anchor = p + rng.normal(0.0, 0.05, p.shape)
+    anchor[rng.random(n) < nan_share] = np.nan
+    d0 = rng.normal(-0.5, 0.4, n)
+    hbar = 0.05 + 0.2 * rng.random(n)
+    free = np.flatnonzero(rng.random(n) < 0.7).astype(np.int64)
+    d_of = rng.normal(-0.3, 0.3, n)  # what the domain would answer
+
+    want_d0 = d0.copy()
+    bound = d0[free] + np.hypot(*(p[free] - anchor[free]).T)
+    if not exact:
+        bound[:] = np.nan
+    sure = bound < -DEEP * hbar[free]
+    want_d0[free[sure]] = bound[sure]
+    want_ask = free[~sure]
+    want_d0[want_ask] = d_of[want_ask]
+    want_deep = np.zeros(n, dtype=bool)
+    want_deep[free] = want_d0[free] < -DEEP * hbar[free]
+
+    got_d0 = d0.copy()
+    ask = depth_bounds(p, anchor, got_d0, hbar, free, DEEP, exact)
+    got_d0[ask] = d_of[ask]
+    deep = np.zeros(n, dtype=np.bool_)
+    mark_deep(got_d0, hbar, free, DEEP, deep)
+    assert np.array_equal(ask, want_ask)
+    assert np.array_equal(got_d0, want_d0, equal_nan=True)
+    assert np.array_equal(deep, want_deep)

@@ -530,16 +530,13 @@ class _Relaxation:
         """
         if not len(free):
             return
-        p = self.p
-        bound = self._d0[free] + np.hypot(*(p[free] - self.anchor[free]).T)
-        if not getattr(self.domain, "exact_distance", False):
-            bound[:] = np.nan
-        sure = bound < -DEEP * self.hbar[free]  # NaN (no anchor yet) is not
-        self._d0[free[sure]] = bound[sure]
-        ask = free[~sure]
+        k = self._k
+        free = free.astype(np.int64)
+        exact = bool(getattr(self.domain, "exact_distance", False))
+        ask = k.depth_bounds(self.p, self.anchor, self._d0, self.hbar, free, DEEP, exact)
         if len(ask):
-            self._d0[ask] = self.domain.sdf(p[ask])
-        self._deep[free] = self._d0[free] < -DEEP * self.hbar[free]
+            self._d0[ask] = self.domain.sdf(self.p[ask])
+        k.mark_deep(self._d0, self.hbar, free, DEEP, self._deep)
 
     def retriangulate(self, everywhere: bool = False) -> None:
         """Make the triangulation Delaunay again after the nodes moved (see the module doc).

@@ -567,6 +567,34 @@ def flip_update(indptr, adj, eid, bars, removed, added):  # type: ignore[no-unty
     return ids
 
 
+@njit(cache=True)
+def depth_bounds(p, anchor, d0, hbar, free, deep, exact):  # type: ignore[no-untyped-def]
+    """For the free nodes ``free`` whose anchors move to their positions: with ``exact`` (d
+    1-Lipschitz), the bound ``d0 + |p - anchor|`` of d, kept in ``d0`` where it is below
+    ``-deep * hbar`` (the node is deep whatever d is); returns the other nodes (all of them
+    without ``exact``, and any whose anchor is NaN), whose d must be asked."""
+    ask = np.empty(free.shape[0], dtype=np.int64)
+    na = 0
+    for a in range(free.shape[0]):
+        i = free[a]
+        if exact:
+            bound = d0[i] + math.hypot(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1])
+            if bound < -deep * hbar[i]:  # NaN (no anchor yet) is not
+                d0[i] = bound
+                continue
+        ask[na] = i
+        na += 1
+    return ask[:na]
+
+
+@njit(cache=True)
+def mark_deep(d0, hbar, free, deep, flags):  # type: ignore[no-untyped-def]
+    """``flags[i] = d0[i] < -deep * hbar[i]`` for the nodes ``free``."""
+    for a in range(free.shape[0]):
+        i = free[a]
+        flags[i] = d0[i] < -deep * hbar[i]
+
+
 @njit(cache=True, nogil=True)
 def _mark_drifted(p, anchor, hbar, tol, mark):  # type: ignore[no-untyped-def]
     for i in range(p.shape[0]):
