@@ -596,9 +596,16 @@ def mark_deep(d0, hbar, free, deep, flags):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, nogil=True)
-def _mark_drifted(p, anchor, hbar, tol, mark):  # type: ignore[no-untyped-def]
+def _mark_drifted(p, anchor, hbar, tol, mark, first):  # type: ignore[no-untyped-def]
+    out = np.empty(p.shape[0], dtype=np.int64)
+    k = 0
     for i in range(p.shape[0]):
-        mark[i] = _norm(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) > tol * hbar[i]
+        m = _norm(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) > tol * hbar[i]
+        mark[i] = m
+        if m:
+            out[k] = first + i
+            k += 1
+    return out[:k]
 
 
 @njit(cache=True, nogil=True)
@@ -620,10 +627,11 @@ def drifted(p, anchor, hbar, tol, tri):  # type: ignore[no-untyped-def]
     out in increasing order, as from one loop.
     """
     mark = np.empty(len(p), dtype=np.bool_)
-    threads.each(len(p), lambda lo, hi: _mark_drifted(p[lo:hi], anchor[lo:hi], hbar[lo:hi], tol,
-                                                      mark[lo:hi]))
+    nodes = threads.each(len(p), lambda lo, hi: _mark_drifted(p[lo:hi], anchor[lo:hi], hbar[lo:hi],
+                                                              tol, mark[lo:hi], lo))
     rows = threads.each(len(tri), lambda lo, hi: _rows_using(tri[lo:hi], mark, lo))
-    return np.flatnonzero(mark), (rows[0] if len(rows) == 1 else np.concatenate(rows))
+    return (nodes[0] if len(nodes) == 1 else np.concatenate(nodes),
+            rows[0] if len(rows) == 1 else np.concatenate(rows))
 
 
 def threaded_bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total, damp):  # type: ignore[no-untyped-def]
