@@ -75,7 +75,9 @@ Other choices the paper leaves open:
   flags are renewed: the update is usually triggered by a handful of nodes (on a 1e6-node
   square the five whole-mesh flip passes of a run changed no edge at all).  The node lists
   have ``ROW_SLACK`` free slots per node, so the flips' new edges are written into them in
-  place; a list that runs out of slots is rebuilt.  At the end the flips run everywhere.
+  place, from the flips' own log (``kernels.delaunay.flips_logged``: which edge gave way to
+  which; at a million nodes comparing every triangle with a copy cost more than the flips);
+  a list that runs out of slots is rebuilt.  At the end the flips run everywhere.
 * **The step** is compiled (:mod:`injmesh.kernels.smooth`): the bars are node neighbour lists
   in CSR form built once per connectivity, and each node gathers its own bar forces in a fixed
   order, so the result is bit-identical whatever the thread count.  On large node lists the
