@@ -266,7 +266,11 @@ def test_callback_receives_each_stage_and_nothing_is_printed(capsys) -> None:
     # Stages come in the order of Algorithm 1.
     assert stages.index("injection") > max(i for i, s in enumerate(stages) if s == "boundary")
     assert stages.index("smoothing") > max(i for i, s in enumerate(stages) if s == "injection")
-    assert all(e.step >= 1 and (e.total is None or e.step <= e.total) for e in events)
+    assert all(e.step >= 1 and (e.total is None or e.step <= e.total)
+               for e in events if e.step != 0 or e.stage != "smoothing")
+    # Smoothing announces its start before its first triangulation, once.
+    assert [e.step for e in events if e.stage == "smoothing"][0] == 0
+    assert sum(e.step == 0 for e in events) == 1
     out = capsys.readouterr()
     assert out.out == "" and out.err == ""
 

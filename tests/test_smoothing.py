@@ -96,8 +96,10 @@ def test_smoothing_reports_progress(disc_nodes) -> None:
     events = []
     smooth(domain, h, p, n_fixed=len(b.points), sliding=sliding, max_iterations=5,
            callback=events.append)
-    assert [e.stage for e in events] == ["smoothing"] * 5
-    assert all(e.info["max_move"] >= 0 for e in events)
+    # The stage's start (step 0, before the first triangulation), then one event per step.
+    assert [e.stage for e in events] == ["smoothing"] * 6
+    assert [e.step for e in events] == [0, 1, 2, 3, 4, 5]
+    assert all(e.info["max_move"] >= 0 for e in events[1:])
 
 
 def test_all_fixed_nodes_is_a_no_op() -> None:

@@ -19,7 +19,9 @@ class Progress:
     stage : str
         ``"boundary"``, ``"injection"``, ``"smoothing"`` or ``"distmesh"``.
     step : int
-        Iteration or layer number within the stage (1-based).
+        Iteration or layer number within the stage (1-based); 0 marks the start of a stage
+        whose set-up takes a while before its first step (smoothing: the first
+        triangulation, seconds at a million nodes).
     total : int or None
         The stage's cap on ``step``, when known.
     info : dict

@@ -871,6 +871,8 @@ def smooth(
     if smoothing == "attractive":
         slide = slide[:0]  # the paper keeps boundary nodes where Step 1 put them
     wall = np.zeros((0, 2), dtype=np.intp) if walls is None else np.asarray(walls, np.intp)
+    # The stage starts now: the first triangulation takes seconds at a million nodes.
+    report(callback, "smoothing", 0, cap, nodes=len(p))
     # The free nodes renumbered along a Hilbert curve, and the triangles listed by their lowest
     # node (``_set_triangles``): mesh neighbours are then near each other in memory, which the
     # kernels' gathers (forces, neighbour lists, flips) need at a million nodes.  Injection
