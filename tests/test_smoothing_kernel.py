@@ -117,12 +117,10 @@ def test_one_ring_as_indices_is_the_ring_mask(k: int, n: int, raw: list[int], pa
     """``ring_one`` lists what ``rings(..., 1)`` marks, sorted, whatever the number of seeds
     (its two ways of listing: a sort of few, a scan of many), including rows with free slots
     and repeated seeds, and leaves its scratch mask zeroed."""
-    from injmesh.kernels.smooth import pad_rows, ring_one
+    from injmesh.kernels.smooth import ring_one
 
     p, tri = _mesh(k, n)
-    indptr, adj, eid, _ = adjacency(len(p), tri)
-    if padded:
-        indptr, adj, eid = pad_rows(indptr, adj, eid, 3)
+    indptr, adj, eid, _ = adjacency(len(p), tri, 3 if padded else 0)
     seeds = np.array([r % len(p) for r in raw], dtype=np.int64)
     mark = np.zeros(len(p), dtype=np.uint8)
     got = ring_one(indptr, adj, seeds, mark)
@@ -350,11 +348,11 @@ def test_star_independent_is_the_greedy_independent_set(seed: int, n: int, share
 
 def test_node_lists_follow_flips_in_place() -> None:
     """After nodes move and Lawson flips change some triangles, the padded node lists updated
-    in place (pad_rows, flip_update) hold exactly the new triangulation's neighbours, each
+    in place (adjacency's free slots, flip_update) hold exactly the new triangulation's neighbours, each
     entry pointing at a bar with those two ends."""
     from injmesh.kernels.delaunay import flips_logged
     from injmesh.kernels.mesh import neighbours
-    from injmesh.kernels.smooth import flip_diff, flip_update, pad_rows
+    from injmesh.kernels.smooth import flip_diff, flip_update
 
     key = np.int64(2**31)
 
@@ -370,8 +368,7 @@ def test_node_lists_follow_flips_in_place() -> None:
         n = int(rng.integers(10, 150))
         p = rng.random((n, 2))
         t32 = np.ascontiguousarray(delaunay(p), dtype=np.int32)
-        indptr, adj, eid, bars = adjacency(n, t32)
-        indptr, adj, eid = pad_rows(indptr, adj, eid, 3)
+        indptr, adj, eid, bars = adjacency(n, t32, 3)
         nbr = np.asarray(neighbours(t32.astype(np.int64), n), dtype=np.int32)
         vt = np.full(n, -1, dtype=np.int32)
         vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)

@@ -13,7 +13,6 @@ from injmesh.kernels.smooth import (
     adjacency,
     mean_bar_size_of,
     moved_bars,
-    pad_rows,
     renew_sizes,
     ring_one,
     row_bars,
@@ -68,8 +67,7 @@ def test_fused_update_kernels_give_the_separate_kernels_numbers(
     their scratch arrays zeroed."""
     rng = np.random.default_rng(seed)
     p, tri, _ = _mesh(seed, n, False)
-    indptr, adj, eid, bars = adjacency(len(p), tri.astype(np.int32))
-    indptr, adj, eid = pad_rows(indptr, adj, eid, 3)
+    indptr, adj, eid, bars = adjacency(len(p), tri.astype(np.int32), 3)
     nodes = np.unique(np.array([r % len(p) for r in raw], dtype=np.int64))
     mark = np.zeros(len(p), dtype=np.uint8)
     seen = np.zeros(len(bars), dtype=np.bool_)
@@ -159,3 +157,27 @@ def test_depth_bounds_are_the_vectorised_test(seed: int, n: int, exact: bool, na
     assert np.array_equal(ask, want_ask)
     assert np.array_equal(got_d0, want_d0, equal_nan=True)
     assert np.array_equal(deep, want_deep)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10**6), st.integers(3, 300), st.integers(0, 4), st.integers(0, 5),
+       st.booleans())
+def test_padded_adjacency_is_the_rows_with_free_slots(
+    seed: int, n: int, slack: int, lonely: int, lattice: bool
+) -> None:
+    """``adjacency(n, tri, slack)``: each row of the unpadded lists followed by ``slack`` free
+    slots (-1 in ``adj`` and ``eid``), the same bars, with nodes in no triangle too."""
+    p, tri, _ = _mesh(seed, n, lattice)
+    t32 = tri.astype(np.int32)
+    m = len(p) + lonely
+    indptr, adj, eid, bars = adjacency(m, t32)
+    got_ptr, got_adj, got_eid, got_bars = adjacency(m, t32, slack)
+    assert np.array_equal(got_bars, bars)
+    assert np.array_equal(np.diff(got_ptr), np.diff(indptr) + slack)
+    for v in range(m):
+        row = slice(got_ptr[v], got_ptr[v + 1])
+        filled = got_ptr[v] + indptr[v + 1] - indptr[v]
+        assert np.array_equal(got_adj[got_ptr[v]:filled], adj[indptr[v]:indptr[v + 1]])
+        assert np.array_equal(got_eid[got_ptr[v]:filled], eid[indptr[v]:indptr[v + 1]])
+        assert (got_adj[row][filled - got_ptr[v]:] == -1).all()
+        assert (got_eid[row][filled - got_ptr[v]:] == -1).all()

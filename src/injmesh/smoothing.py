@@ -359,13 +359,15 @@ def triangulate(domain: Domain, p: FloatArray, walls: IntArray | None = None) ->
 def _triangulated(
     domain: Domain, p: FloatArray, walls: IntArray | None = None
 ) -> tuple[IntArray, Int32Array]:
-    """:func:`triangulate`'s triangles and their neighbour table (int32, -1 where there is
-    none), which the Delaunay kernel kept as it went: the relaxation takes both, instead of
-    finding every edge's twin again (~0.25 s at a million nodes)."""
-    from .kernels.mesh import kept_neighbours
+    """:func:`triangulate`'s triangles ordered by their least node (as the relaxation keeps
+    them) and their neighbour table (int32, -1 where there is none), which the Delaunay
+    kernel kept as it went: the relaxation takes both, instead of finding every edge's twin
+    again (~0.25 s at a million nodes)."""
+    from .kernels.mesh import by_least_vertex, kept_neighbours
 
     tri, nbr = delaunay_with_neighbours(p)
     rows = np.flatnonzero(inside_mask(p, tri, domain.sdf, walls, nbr))
+    rows = rows[by_least_vertex(tri[rows], len(p))]
     return tri[rows], kept_neighbours(nbr, rows)
 
 
@@ -450,15 +452,17 @@ class _Relaxation:
         return lambda q: self.project(q, nodes)
 
     def _set_triangles(self, tri: IntArray, nbr: Int32Array | None = None) -> None:
-        """Take a new triangulation (from scratch): its neighbour table for the flips (``nbr``,
-        the table of ``tri``, when the caller has it).  The rows are ordered by their least
-        node (the nodes are in Hilbert order): the flips' and kernels' gathers stay local."""
-        from .kernels.mesh import by_least_vertex, kept_neighbours
+        """Take a new triangulation (from scratch): its neighbour table for the flips.  The
+        rows are ordered by their least node (the nodes are in Hilbert order): the flips' and
+        kernels' gathers stay local.  ``nbr``: the table of ``tri`` when the caller has it,
+        ``tri`` being in that order already (:func:`_triangulated`)."""
+        from .kernels.mesh import by_least_vertex
 
-        order = by_least_vertex(tri, len(self.p))
-        t32 = np.ascontiguousarray(tri[order], dtype=np.int32)
+        if nbr is None:
+            tri = tri[by_least_vertex(tri, len(self.p))]
+        t32 = np.ascontiguousarray(tri, dtype=np.int32)
         self._t32 = t32
-        self._nbr = _neighbours32(t32, len(self.p)) if nbr is None else kept_neighbours(nbr, order)
+        self._nbr = _neighbours32(t32, len(self.p)) if nbr is None else nbr
         self._con = np.zeros(t32.shape, dtype=np.uint8)
         self._vt = np.full(len(self.p), -1, dtype=np.int32)
         self._vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
@@ -480,9 +484,8 @@ class _Relaxation:
         k, p = self._k, self.p
         if rebuild:
             self.tri = self._t32.astype(np.intp)
-            indptr, adj, eid, bars = k.adjacency(len(p), self._t32)
             # Free slots in every row: later flips update the rows in place (_flipped).
-            indptr, adj, eid = k.pad_rows(indptr, adj, eid, ROW_SLACK)
+            indptr, adj, eid, bars = k.adjacency(len(p), self._t32, ROW_SLACK)
             self._bars = bars
         else:
             indptr, adj, eid = self._csr[:3]

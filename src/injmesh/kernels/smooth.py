@@ -108,12 +108,14 @@ def slide_accept(p, slide, hbar, cand, moved):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def adjacency(n, tri):  # type: ignore[no-untyped-def]
+def adjacency(n, tri, slack=0):  # type: ignore[no-untyped-def]
     """Node neighbours of the triangles ``tri (m, 3)`` over ``n`` nodes, in CSR form.
 
     Returns ``indptr (n + 1,) int64``, ``adj (2k,) int32`` (each row sorted, no repeats),
     ``eid (2k,) int64`` (the bar of each entry) and ``bars (k, 2) int64`` (``i < j``, sorted
-    lexicographically).  A node in no triangle has an empty row.
+    lexicographically).  A node in no triangle has an empty row.  With ``slack``, each row
+    ends in that many free slots (``adj`` and ``eid`` -1 there), so that :func:`flip_update`
+    can change a row's neighbours in place.
     """
     m = tri.shape[0]
     # Each corner contributes its two other corners; rows are deduplicated after sorting.
@@ -144,6 +146,13 @@ def adjacency(n, tri):  # type: ignore[no-untyped-def]
                 raw[s + 1] = raw[s]
                 s -= 1
             raw[s + 1] = x
+        # Room for the row and its free slots.  ``adj`` has 2 entries per corner, about
+        # twice the distinct neighbours of a mesh, but not always room for the slots too (a
+        # strip, nodes in no triangle): it grows when short.
+        if w + (hi - lo) + slack > adj.shape[0]:
+            grown = np.empty(max(2 * adj.shape[0], w + (hi - lo) + slack), dtype=np.int32)
+            grown[:w] = adj[:w]
+            adj = grown
         last = -1
         for r in range(lo, hi):
             x = raw[r]
@@ -151,12 +160,19 @@ def adjacency(n, tri):  # type: ignore[no-untyped-def]
                 adj[w] = x
                 w += 1
                 last = x
+        for r in range(w, w + slack):
+            adj[r] = -1
+        w += slack
         indptr[v + 1] = w
     adj = adj[:w].copy()
     # Bars are the entries with j > i, numbered in CSR order (= lexicographic order).
-    k = w // 2
+    eid = np.full(w, -1, dtype=np.int64)
+    k = 0
+    for v in range(n):
+        for e in range(indptr[v], indptr[v + 1]):
+            if adj[e] > v:
+                k += 1
     bars = np.empty((k, 2), dtype=np.int64)
-    eid = np.empty(w, dtype=np.int64)
     b = 0
     for v in range(n):
         for e in range(indptr[v], indptr[v + 1]):
@@ -165,13 +181,14 @@ def adjacency(n, tri):  # type: ignore[no-untyped-def]
                 bars[b, 1] = adj[e]
                 eid[e] = b
                 b += 1
-    # Entries with j < i take the bar number of the mirrored entry (binary search in row j).
+    # Entries with j < i take the bar number of the mirrored entry (binary search in row j,
+    # whose filled part ends before its free slots).
     for v in range(n):
         for e in range(indptr[v], indptr[v + 1]):
             u = adj[e]
-            if u < v:
+            if 0 <= u < v:
                 lo = indptr[u]
-                hi = indptr[u + 1]
+                hi = indptr[u + 1] - slack
                 while lo < hi:
                     mid = (lo + hi) // 2
                     if adj[mid] < v:
@@ -209,7 +226,7 @@ def bar_forces(p, nodes, indptr, adj, eid, ld, attraction, total, damp):  # type
         yi = p[i, 1]
         for e in range(indptr[i], indptr[i + 1]):
             j = adj[e]
-            if j < 0:  # a free slot of the row (see pad_rows)
+            if j < 0:  # a free slot of the row (see adjacency)
                 continue
             vx = xi - p[j, 0]
             vy = yi - p[j, 1]
@@ -502,26 +519,6 @@ def moved_bars(indptr, adj, eid, bars, p, nodes, mark, seen, graded):  # type: i
         mid[r, 0] = 0.5 * (p[i, 0] + p[j, 0])
         mid[r, 1] = 0.5 * (p[i, 1] + p[j, 1])
     return near, b, mid
-
-
-@njit(cache=True)
-def pad_rows(indptr, adj, eid, slack):  # type: ignore[no-untyped-def]
-    """The CSR rows with ``slack`` free slots each (``adj`` and ``eid`` -1 there), so that
-    :func:`flip_update` can change a row's neighbours in place."""
-    n = indptr.shape[0] - 1
-    out_ptr = np.empty(n + 1, dtype=np.int64)
-    out_ptr[0] = 0
-    for v in range(n):
-        out_ptr[v + 1] = out_ptr[v] + (indptr[v + 1] - indptr[v]) + slack
-    out_adj = np.full(out_ptr[n], -1, dtype=np.int32)
-    out_eid = np.full(out_ptr[n], -1, dtype=np.int64)
-    for v in range(n):
-        w = out_ptr[v]
-        for e in range(indptr[v], indptr[v + 1]):
-            out_adj[w] = adj[e]
-            out_eid[w] = eid[e]
-            w += 1
-    return out_ptr, out_adj, out_eid
 
 
 @njit(cache=True)
