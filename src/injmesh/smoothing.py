@@ -630,44 +630,44 @@ class _Relaxation:
         if self._stale:  # final() updated the lists only: renew what depends on positions
             self._connect(rebuild=False)
             self._stale = False
+        # A small node list steps in one kernel call (forces, the move, the near nodes' anchor
+        # test: kernels.smooth.step_free); a large one hands chunks to threads.
+        fused = not k.threads.worth(len(self._moving))
+        ok = np.empty(len(self._free), dtype=np.bool_)
         for _ in range(steps):
             if self.iterations + self.weight > self.cap + 1e-9:
                 return False
             self.iterations += self.weight
             indptr, adj, eid, ld = self._csr
-            k.threaded_bar_forces(p, self._moving, indptr, adj, eid, ld, attraction, self._total,
-                                  self._damp)
-            c, worst, at, drift, count = k.threaded_advance(
-                p, self._free, self._total, self.hbar, DT, STEP_CAP, self._deep, self.anchor,
-                self._cand, self._near, DPTOL)
-            if c:
-                # Nodes near the boundary: a step that would leave the domain is not taken.
-                idx, new = self._near[:c], self._cand[:c]
+            if fused:
+                c, worst, at, drift, count, asks = k.step_free(
+                    p, self._moving, self._free, indptr, adj, eid, ld, attraction, self._total,
+                    self._damp, self.hbar, DT, STEP_CAP, self._deep, self.anchor, self._d0,
+                    self._reach, self._cand, self._near, ok, DPTOL)
+            else:
+                k.threaded_bar_forces(p, self._moving, indptr, adj, eid, ld, attraction,
+                                      self._total, self._damp)
+                c, worst, at, drift, count = k.threaded_advance(
+                    p, self._free, self._total, self.hbar, DT, STEP_CAP, self._deep, self.anchor,
+                    self._cand, self._near, DPTOL)
                 # A node still within its anchor's depth of its anchor is inside (half of it
-                # for a d that is not an exact distance: the factor 2 DEEP allows): the sdf is
-                # asked only for the few that went further, the costly call on an outline.
-                ok = np.hypot(*(new - self.anchor[idx]).T) < -self._reach * self._d0[idx]
-                rest = np.flatnonzero(~ok)
-                if len(rest):
-                    ok[rest] = ~(self.domain.sdf(new[rest]) > 0)
-                idx, new = idx[ok], new[ok]
-                if len(idx):
-                    hb = self.hbar[idx]
-                    mv = np.hypot(*(new - p[idx]).T) / hb
-                    count += int(np.count_nonzero(mv > DPTOL))
-                    p[idx] = new
-                    drift = max(drift, float(np.max(np.hypot(*(new - self.anchor[idx]).T) / hb)))
-                    a = int(np.argmax(mv))
-                    if mv[a] > worst:
-                        worst, at = float(mv[a]), int(idx[a])
+                # for a d that is not an exact distance: the factor 2 DEEP allows).
+                asks = k.near_inside(self._cand, self._near, c, self.anchor, self._d0, self._reach,
+                                     ok) if c else 0
+            if c:
+                # Nodes near the boundary: a step that would leave the domain is not taken.  The
+                # sdf is asked only for the few that went further than the anchor test allows,
+                # the costly call on an outline.
+                if asks:
+                    rest = np.flatnonzero(~ok[:c])
+                    ok[rest] = ~(self.domain.sdf(self._cand[rest]) > 0)
+                worst, at, drift, count = k.take_near(p, self._near, self._cand, c, ok, self.hbar,
+                                                      self.anchor, DPTOL, worst, at, drift, count)
             if len(self._sl):
                 b = self._sl[:, 0]
                 mv = _slide(p, self._sl, self._total, self.hbar, self._ld_slide, self._projector(b))
-                count += int(np.count_nonzero(mv > DPTOL))
-                a = int(np.argmax(mv))
-                if mv[a] > worst:
-                    worst, at = float(mv[a]), int(b[a])
-                drift = max(drift, float(np.max(np.hypot(*(p[b] - self.anchor[b]).T) / self.hbar[b])))
+                worst, at, drift, count = k.fold_moves(b, mv, p, self.anchor, self.hbar, DPTOL,
+                                                       worst, at, drift, count)
             worst = max(worst, 0.0)
             at = max(at, 0)
             self.unsettled = (float(p[at, 0]), float(p[at, 1]))
