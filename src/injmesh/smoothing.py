@@ -467,12 +467,21 @@ class _Relaxation:
             indptr, adj, eid = self._csr[:3]
             bars = self._bars
         constant = getattr(self.h, "constant", None)
+        ld_slide: FloatArray | None = None
         if constant is not None and not rebuild:
             ld = self._csr[3]  # a constant h: the bars' desired lengths did not change
         elif constant is not None:
             ld = np.full(len(bars), float(constant))
         else:
-            ld = np.ascontiguousarray(self.h(0.5 * (p[bars[:, 0]] + p[bars[:, 1]])), dtype=np.float64)
+            # The bars' midpoints and the sliding nodes' two boundary bars' in one call of h
+            # (a small sub-mesh of the repair pays the call, not the points).
+            mid = 0.5 * (p[bars[:, 0]] + p[bars[:, 1]])
+            if len(self._sl):
+                b, bp, bn = self._sl.T
+                mid = np.concatenate([mid, 0.5 * (p[b] + p[bp]), 0.5 * (p[b] + p[bn])])
+            values = np.asarray(self.h(mid), dtype=np.float64)
+            ld = np.ascontiguousarray(values[:len(bars)])
+            ld_slide = values[len(bars):]
         hbar = k.mean_bar_size(indptr, eid, ld)
         # A node in no triangle (the triangulation leaves out coincident points) feels no force; its own h
         # keeps the relative measures finite.
@@ -484,7 +493,10 @@ class _Relaxation:
         # The stability limit of each moving node's step (see kernels.smooth.stable_scale).
         self._damp = np.ones(len(p))
         k.threaded_stable_scale(p, self._moving, indptr, adj, eid, ld, DT * hbar, STABLE_GAIN, self._damp)
-        if len(self._sl):
+        if len(self._sl) and ld_slide is not None:
+            k_sl = len(self._sl)
+            self._ld_slide = (ld_slide[:k_sl].copy(), ld_slide[k_sl:].copy())
+        elif len(self._sl):
             b, bp, bn = self._sl.T
             self._ld_slide = (np.array(self.h(0.5 * (p[b] + p[bp])), dtype=np.float64),
                               np.array(self.h(0.5 * (p[b] + p[bn])), dtype=np.float64))
