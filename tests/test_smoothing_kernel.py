@@ -638,3 +638,84 @@ def test_repair_leaves_a_part_pinned_by_a_fixed_triangle(monkeypatch: pytest.Mon
     assert q1[np.hypot(*(c1 - (0.75, 0.7)).T) < 0.2].min() > q[
         np.hypot(*(p[t].mean(axis=1) - (0.75, 0.7)).T) < 0.2].min()
     assert (signed_areas(out_p, out_t) > 0).all()
+
+
+def _reference_step(p, free, total, hbar, deep, anchor, d0, reach, sdf, cand, near, c, tol):
+    """The near nodes' part of a step as the NumPy lines the fused kernels replaced: the anchor
+    test, the domain's inside test for the rest, the accepted moves and their reductions."""
+    idx, new = near[:c], cand[:c]
+    ok = np.hypot(*(new - anchor[idx]).T) < -reach * d0[idx]
+    asks = int(np.count_nonzero(~ok))
+    rest = np.flatnonzero(~ok)
+    if len(rest):
+        ok[rest] = ~(sdf(new[rest]) > 0)
+    idx, new = idx[ok], new[ok]
+    worst, at, drift, count = -1.0, -1, 0.0, 0
+    if len(idx):
+        hb = hbar[idx]
+        mv = np.hypot(*(new - p[idx]).T) / hb
+        count = int(np.count_nonzero(mv > tol))
+        p[idx] = new
+        drift = float(np.max(np.hypot(*(new - anchor[idx]).T) / hb))
+        a = int(np.argmax(mv))
+        worst, at = float(mv[a]), int(idx[a])
+    return asks, worst, at, drift, count
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(8, 120), attraction=st.sampled_from([ATTRACTION, 0.0]))
+def test_fused_step_kernels_equal_the_separate_calls(seed: int, n: int, attraction: float) -> None:
+    """step_free = bar_forces + advance + the anchor test, and take_near / fold_moves give the
+    NumPy reductions they replace, bit for bit (the meshes must not change)."""
+    from injmesh.kernels.smooth import fold_moves, near_inside, step_free, take_near
+
+    rng = np.random.default_rng(seed)
+    p, tri = _mesh(seed % 1000, n)
+    indptr, adj, eid, bars = adjacency(n, tri)
+    ld = rng.uniform(0.05, 0.4, len(bars))
+    hbar = mean_bar_size(indptr, eid, ld)
+    hbar[hbar == 0] = 0.1
+    n_fixed = min(3, n - 1)
+    free = np.arange(n_fixed, n)
+    moving = np.arange(n)
+    deep = rng.random(n) < 0.5
+    anchor = p + rng.normal(scale=0.01, size=p.shape)
+    damp = rng.uniform(0.5, 1.0, n)
+
+    def sdf(q):  # a square's (exact inside), a little smaller than the points': some steps are refused
+        return np.max(np.abs(q - 0.5), axis=1) - 0.48
+
+    d0 = np.minimum(sdf(anchor), 0.0)  # the depth of each anchor (0 outside)
+
+    # Reference: the separate kernels, then NumPy.
+    pr, totr = p.copy(), np.zeros_like(p)
+    candr, nearr = np.empty((len(free), 2)), np.empty(len(free), dtype=np.intp)
+    bar_forces(pr, moving, indptr, adj, eid, ld, attraction, totr, damp)
+    c, w0, a0, dr0, n0 = advance(pr, free, totr, hbar, DT, 0.5, deep, anchor, candr, nearr, 0.003)
+    asks_r, w1, a1, dr1, n1 = _reference_step(pr, free, totr, hbar, deep, anchor, d0, 0.5, sdf, candr, nearr,
+                                              c, 0.003)
+    worst_r, at_r = (w1, a1) if w1 > w0 else (w0, a0)
+    # Fused.
+    pf, totf = p.copy(), np.zeros_like(p)
+    candf, nearf = np.empty((len(free), 2)), np.empty(len(free), dtype=np.intp)
+    ok = np.empty(len(free), dtype=np.bool_)
+    cf, w, a, dr, cnt, asks = step_free(pf, moving, free, indptr, adj, eid, ld, attraction, totf, damp, hbar,
+                                        DT, 0.5, deep, anchor, d0, 0.5, candf, nearf, ok, 0.003)
+    assert (cf, w, a, dr, cnt) == (c, w0, a0, dr0, n0)
+    assert np.array_equal(totf, totr) and np.array_equal(candf[:c], candr[:c])
+    assert np.array_equal(nearf[:c], nearr[:c])
+    assert asks == asks_r == near_inside(candf, nearf, c, anchor, d0, 0.5, ok.copy())
+    rest = np.flatnonzero(~ok[:c])
+    ok[rest] = ~(sdf(candf[rest]) > 0)
+    w, a, dr, cnt = take_near(pf, nearf, candf, c, ok, hbar, anchor, 0.003, w, a, dr, cnt)
+    assert np.array_equal(pf, pr), "the same positions, bit for bit"
+    assert (w, a, dr, cnt) == (worst_r, at_r, max(dr0, dr1), n0 + n1)
+    moved_near = nearf[:c][ok[:c]]
+    assert np.all(sdf(pf[moved_near]) <= 0), "no near node leaves the domain"
+    # fold_moves: the sliding nodes' reductions.
+    nodes = rng.choice(n, size=min(n, 10), replace=False)
+    mv = rng.uniform(0.0, 0.01, len(nodes))
+    got = fold_moves(nodes, mv, pf, anchor, hbar, 0.003, -1.0, -1, 0.0, 0)
+    k = int(np.argmax(mv))
+    ref_drift = float(np.max(np.hypot(*(pf[nodes] - anchor[nodes]).T) / hbar[nodes]))
+    assert got == (float(mv[k]), int(nodes[k]), ref_drift, int(np.count_nonzero(mv > 0.003)))

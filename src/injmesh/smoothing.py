@@ -491,12 +491,21 @@ class _Relaxation:
             indptr, adj, eid = self._csr[:3]
             bars = self._bars
         constant = getattr(self.h, "constant", None)
+        ld_slide: FloatArray | None = None
         if constant is not None and not rebuild:
             ld = self._csr[3]  # a constant h: the bars' desired lengths did not change
         elif constant is not None:
             ld = np.full(len(bars), float(constant))
         else:
-            ld = np.ascontiguousarray(self.h(0.5 * (p[bars[:, 0]] + p[bars[:, 1]])), dtype=np.float64)
+            # The bars' midpoints and the sliding nodes' two boundary bars' in one call of h
+            # (a small sub-mesh of the repair pays the call, not the points).
+            mid = 0.5 * (p[bars[:, 0]] + p[bars[:, 1]])
+            if len(self._sl):
+                b, bp, bn = self._sl.T
+                mid = np.concatenate([mid, 0.5 * (p[b] + p[bp]), 0.5 * (p[b] + p[bn])])
+            values = np.asarray(self.h(mid), dtype=np.float64)
+            ld = np.ascontiguousarray(values[:len(bars)])
+            ld_slide = values[len(bars):]
         hbar = k.mean_bar_size(indptr, eid, ld)
         # A node in no triangle (the triangulation leaves out coincident points) feels no force; its own h
         # keeps the relative measures finite.
@@ -508,7 +517,10 @@ class _Relaxation:
         # The stability limit of each moving node's step (see kernels.smooth.stable_scale).
         self._damp = np.ones(len(p))
         k.threaded_stable_scale(p, self._moving, indptr, adj, eid, ld, DT * hbar, STABLE_GAIN, self._damp)
-        if len(self._sl):
+        if len(self._sl) and ld_slide is not None:
+            k_sl = len(self._sl)
+            self._ld_slide = (ld_slide[:k_sl].copy(), ld_slide[k_sl:].copy())
+        elif len(self._sl):
             b, bp, bn = self._sl.T
             self._ld_slide = (np.array(self.h(0.5 * (p[b] + p[bp])), dtype=np.float64),
                               np.array(self.h(0.5 * (p[b] + p[bn])), dtype=np.float64))
@@ -653,44 +665,44 @@ class _Relaxation:
         if self._stale:  # final() updated the lists only: renew what depends on positions
             self._connect(rebuild=False)
             self._stale = False
+        # A small node list steps in one kernel call (forces, the move, the near nodes' anchor
+        # test: kernels.smooth.step_free); a large one hands chunks to threads.
+        fused = not k.threads.worth(len(self._moving))
+        ok = np.empty(len(self._free), dtype=np.bool_)
         for _ in range(steps):
             if self.iterations + self.weight > self.cap + 1e-9:
                 return False
             self.iterations += self.weight
             indptr, adj, eid, ld = self._csr
-            k.threaded_bar_forces(p, self._moving, indptr, adj, eid, ld, attraction, self._total,
-                                  self._damp)
-            c, worst, at, drift, count = k.threaded_advance(
-                p, self._free, self._total, self.hbar, DT, STEP_CAP, self._deep, self.anchor,
-                self._cand, self._near, DPTOL)
-            if c:
-                # Nodes near the boundary: a step that would leave the domain is not taken.
-                idx, new = self._near[:c], self._cand[:c]
+            if fused:
+                c, worst, at, drift, count, asks = k.step_free(
+                    p, self._moving, self._free, indptr, adj, eid, ld, attraction, self._total,
+                    self._damp, self.hbar, DT, STEP_CAP, self._deep, self.anchor, self._d0,
+                    self._reach, self._cand, self._near, ok, DPTOL)
+            else:
+                k.threaded_bar_forces(p, self._moving, indptr, adj, eid, ld, attraction,
+                                      self._total, self._damp)
+                c, worst, at, drift, count = k.threaded_advance(
+                    p, self._free, self._total, self.hbar, DT, STEP_CAP, self._deep, self.anchor,
+                    self._cand, self._near, DPTOL)
                 # A node still within its anchor's depth of its anchor is inside (half of it
-                # for a d that is not an exact distance: the factor 2 DEEP allows): the sdf is
-                # asked only for the few that went further, the costly call on an outline.
-                ok = np.hypot(*(new - self.anchor[idx]).T) < -self._reach * self._d0[idx]
-                rest = np.flatnonzero(~ok)
-                if len(rest):
-                    ok[rest] = ~(self.domain.sdf(new[rest]) > 0)
-                idx, new = idx[ok], new[ok]
-                if len(idx):
-                    hb = self.hbar[idx]
-                    mv = np.hypot(*(new - p[idx]).T) / hb
-                    count += int(np.count_nonzero(mv > DPTOL))
-                    p[idx] = new
-                    drift = max(drift, float(np.max(np.hypot(*(new - self.anchor[idx]).T) / hb)))
-                    a = int(np.argmax(mv))
-                    if mv[a] > worst:
-                        worst, at = float(mv[a]), int(idx[a])
+                # for a d that is not an exact distance: the factor 2 DEEP allows).
+                asks = k.near_inside(self._cand, self._near, c, self.anchor, self._d0, self._reach,
+                                     ok) if c else 0
+            if c:
+                # Nodes near the boundary: a step that would leave the domain is not taken.  The
+                # sdf is asked only for the few that went further than the anchor test allows,
+                # the costly call on an outline.
+                if asks:
+                    rest = np.flatnonzero(~ok[:c])
+                    ok[rest] = ~(self.domain.sdf(self._cand[rest]) > 0)
+                worst, at, drift, count = k.take_near(p, self._near, self._cand, c, ok, self.hbar,
+                                                      self.anchor, DPTOL, worst, at, drift, count)
             if len(self._sl):
                 b = self._sl[:, 0]
                 mv = _slide(p, self._sl, self._total, self.hbar, self._ld_slide, self._projector(b))
-                count += int(np.count_nonzero(mv > DPTOL))
-                a = int(np.argmax(mv))
-                if mv[a] > worst:
-                    worst, at = float(mv[a]), int(b[a])
-                drift = max(drift, float(np.max(np.hypot(*(p[b] - self.anchor[b]).T) / self.hbar[b])))
+                worst, at, drift, count = k.fold_moves(b, mv, p, self.anchor, self.hbar, DPTOL,
+                                                       worst, at, drift, count)
             worst = max(worst, 0.0)
             at = max(at, 0)
             self.unsettled = (float(p[at, 0]), float(p[at, 1]))

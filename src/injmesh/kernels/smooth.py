@@ -866,3 +866,84 @@ def flip_diff(rows, gone, made):  # type: ignore[no-untyped-def]
             added[n_added, 0], added[n_added, 1] = key // big, key % big
             n_added += 1
     return out_rows[:nr].copy(), removed[:n_removed].copy(), added[:n_added].copy()
+
+
+# --- one Euler step in few calls (smoothing._Relaxation.run) ---------------------------------
+# On a sub-mesh of the repair (tens to a few hundred nodes) a step's kernels take microseconds
+# each and the NumPy calls around them (gathers, hypot, reductions over the near and sliding
+# nodes) cost more than the kernels: these fuse them.  Distances use math.hypot, the libm call
+# np.hypot makes, so every test and reduction gives the numbers of the NumPy lines they replace.
+
+
+@njit(cache=True)
+def step_free(p, moving, free, indptr, adj, eid, ld, attraction, total, damp, hbar, dt, step_cap,  # type: ignore[no-untyped-def]
+              deep, anchor, d0, reach, cand, near, ok, tol):
+    """:func:`bar_forces` on ``moving``, :func:`advance` on ``free``, then the anchor test of
+    the near nodes' candidates: ``ok[r]`` is True where candidate r is within ``reach`` of
+    its anchor's depth ``-d0`` of its anchor (inside without asking the domain).
+
+    Returns :func:`advance`'s ``(c, worst, at, drift, count)`` and how many of the ``c``
+    candidates still need the domain's inside test.
+    """
+    bar_forces(p, moving, indptr, adj, eid, ld, attraction, total, damp)
+    c, worst, at, drift, count = advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand,
+                                         near, tol)
+    return c, worst, at, drift, count, near_inside(cand, near, c, anchor, d0, reach, ok)
+
+
+@njit(cache=True)
+def near_inside(cand, near, c, anchor, d0, reach, ok):  # type: ignore[no-untyped-def]
+    """``ok[r]`` for the first ``c`` candidates: ``|cand[r] - anchor[i]| < -reach * d0[i]``
+    with ``i = near[r]`` (see :func:`step_free`).  Returns how many are not."""
+    asks = 0
+    for r in range(c):
+        i = near[r]
+        inside = math.hypot(cand[r, 0] - anchor[i, 0], cand[r, 1] - anchor[i, 1]) < -reach * d0[i]
+        ok[r] = inside
+        if not inside:
+            asks += 1
+    return asks
+
+
+@njit(cache=True)
+def take_near(p, near, cand, c, ok, hbar, anchor, tol, worst, at, drift, count):  # type: ignore[no-untyped-def]
+    """Move each near node ``near[r]`` (r < c) to ``cand[r]`` where ``ok[r]``, and fold the moves
+    into the step's ``(worst, at, drift, count)`` as :func:`advance` does for the deep nodes:
+    largest move over hbar and its node (the first one on ties), largest distance from the
+    anchor over hbar, moves above ``tol``."""
+    for r in range(c):
+        if not ok[r]:
+            continue
+        i = near[r]
+        hb = hbar[i]
+        mv = math.hypot(cand[r, 0] - p[i, 0], cand[r, 1] - p[i, 1]) / hb
+        if mv > tol:
+            count += 1
+        if mv > worst:
+            worst = mv
+            at = i
+        p[i, 0] = cand[r, 0]
+        p[i, 1] = cand[r, 1]
+        dr = math.hypot(cand[r, 0] - anchor[i, 0], cand[r, 1] - anchor[i, 1]) / hb
+        if dr > drift:
+            drift = dr
+    return worst, at, drift, count
+
+
+@njit(cache=True)
+def fold_moves(nodes, moved, p, anchor, hbar, tol, worst, at, drift, count):  # type: ignore[no-untyped-def]
+    """Fold the moves ``moved[r]`` (over hbar) of ``nodes[r]``, already taken, into the step's
+    ``(worst, at, drift, count)`` (see :func:`take_near`); the drift is that of every node of
+    ``nodes``, moved or not."""
+    for r in range(nodes.shape[0]):
+        i = nodes[r]
+        mv = moved[r]
+        if mv > tol:
+            count += 1
+        if mv > worst:
+            worst = mv
+            at = i
+        dr = math.hypot(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) / hbar[i]
+        if dr > drift:
+            drift = dr
+    return worst, at, drift, count
