@@ -621,10 +621,9 @@ class _Relaxation:
         if len(self._seen) != len(ld):
             self._seen = np.zeros(len(ld), dtype=np.bool_)
         # The moved nodes and their neighbours (the ends of their bars), and the bars.
-        near, b, mid = k.moved_bars(indptr, adj, eid, self._bars, p, nodes, self._mark, self._seen,
-                                     graded)
-        if graded:
-            ld[b] = self.h(mid)
+        near, bars, mid = k.moved_bars(indptr, adj, eid, self._bars, p, nodes, self._mark,
+                                        self._seen, graded)
+        rows = np.zeros(0, dtype=np.intp)
         if len(self._sl) and len(nodes):
             # Only the boundary bars with a node in ``nodes`` changed (on a detailed outline
             # the sliding nodes are a fifth of the mesh, and h there is the costly corner cap).
@@ -635,8 +634,15 @@ class _Relaxation:
             mark[nodes] = 0
             if len(rows):
                 b, bp, bn = b[rows], bp[rows], bn[rows]
-                self._ld_slide[0][rows] = self.h(0.5 * (p[b] + p[bp]))
-                self._ld_slide[1][rows] = self.h(0.5 * (p[b] + p[bn]))
+                mid = np.concatenate([mid, 0.5 * (p[b] + p[bp]), 0.5 * (p[b] + p[bn])])
+        # One call of h for the bars and the sliding nodes' boundary bars (h is pointwise; a
+        # repair round's sub-mesh pays the call, not the points).
+        if len(mid):
+            values = np.asarray(self.h(mid), dtype=np.float64)
+            ld[bars] = values[:len(bars)]
+            if len(rows):
+                self._ld_slide[0][rows] = values[len(bars):len(bars) + len(rows)]
+                self._ld_slide[1][rows] = values[len(bars) + len(rows):]
         # hbar of the moved nodes and of their neighbours (whose bars these are too), then
         # their stability limits.
         k.threaded_renew_sizes(p, near, indptr, adj, eid, ld, DT, STABLE_GAIN, graded, self.hbar,
