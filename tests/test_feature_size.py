@@ -12,6 +12,8 @@ from itertools import product
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import injmesh
 from injmesh import Circle, Polygon, Rectangle, SizeError
@@ -450,10 +452,42 @@ def _nearest_reference(p, seg_a, seg_b, prev):
     """``_nearest_on_boundary`` as it was: the default k-d tree's three nearest vertices."""
     from scipy.spatial import cKDTree
 
-    from injmesh.sizing.features import _nearest_of_segments
-
     _, near = cKDTree(seg_a).query(p, k=3)
-    return _nearest_of_segments(p, np.concatenate([near, prev[near]], axis=1), seg_a, seg_b)
+    return _segments_reference(p, np.concatenate([near, prev[near]], axis=1), seg_a, seg_b)
+
+
+def _segments_reference(p, cand, seg_a, seg_b):
+    """The nearest of the candidate segments, in NumPy: foot a + t (b - a), t clamped."""
+    a, b = seg_a[cand], seg_b[cand]
+    ab = b - a
+    L2 = np.maximum(np.einsum("nkj,nkj->nk", ab, ab), np.finfo(float).tiny)
+    t = np.clip(np.einsum("nkj,nkj->nk", p[:, None, :] - a, ab) / L2, 0.0, 1.0)
+    foot = a + t[..., None] * ab
+    dist = np.hypot(*(p[:, None, :] - foot).transpose(2, 0, 1))
+    best = np.argmin(dist, axis=1)
+    rows = np.arange(len(p))
+    return dist[rows, best], foot[rows, best]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 10**6), st.integers(3, 60), st.integers(1, 200), st.integers(1, 8),
+       st.booleans())
+def test_nearest_of_segments_is_the_numpy_form(seed: int, m: int, n: int, c: int, flat: bool) -> None:
+    """The compiled nearest-of-candidates gives the NumPy form's distances and feet bit for
+    bit (first candidate on ties), zero-length segments included."""
+    from injmesh.kernels.outline import nearest_of_segments
+
+    rng = np.random.default_rng(seed)
+    seg_a = rng.random((m, 2))
+    seg_b = np.roll(seg_a, -1, axis=0)
+    if flat:
+        seg_b[0] = seg_a[0]
+    p = rng.random((n, 2)) * 1.5 - 0.25
+    cand = rng.integers(0, m, (n, c))
+    cand[:, -1] = cand[:, 0]  # a repeated candidate: a tie
+    d, f = nearest_of_segments(p, cand, seg_a, seg_b)
+    d_ref, f_ref = _segments_reference(p, cand, seg_a, seg_b)
+    assert np.array_equal(d, d_ref) and np.array_equal(f, f_ref)
 
 
 @pytest.mark.parametrize("name", ["plates", "square", "large"])

@@ -149,6 +149,37 @@ def facing_walls(v, prv, seg, seg_len, v_n, seg_n, radius, width, back_to_back, 
 
 
 @nb.njit(cache=True)
+def nearest_of_segments(p, cand, seg_a, seg_b):  # type: ignore[no-untyped-def]
+    """The distance from each point of ``p (n, 2)`` to the nearest of its candidate segments
+    ``cand (n, c)`` (rows of ``seg_a``, ``seg_b``), and the foot on it (the first candidate on
+    ties).  The foot is ``a + t (b - a)``, t clamped to [0, 1], and the distance a hypot: the
+    numbers of the NumPy form (tests/test_feature_size.py), without its (n, c, 2) temporaries
+    (the feature grid's nearest boundary points)."""
+    n, c = cand.shape
+    tiny = np.finfo(np.float64).tiny
+    dist = np.empty(n)
+    foot = np.empty((n, 2))
+    for i in range(n):
+        px, py = p[i, 0], p[i, 1]
+        best = np.inf
+        fx, fy = 0.0, 0.0
+        for j in range(c):
+            k = cand[i, j]
+            ax, ay = seg_a[k, 0], seg_a[k, 1]
+            abx, aby = seg_b[k, 0] - ax, seg_b[k, 1] - ay
+            l2 = max(abx * abx + aby * aby, tiny)
+            t = min(max(((px - ax) * abx + (py - ay) * aby) / l2, 0.0), 1.0)
+            qx, qy = ax + t * abx, ay + t * aby
+            d = math.hypot(px - qx, py - qy)
+            if d < best:
+                best, fx, fy = d, qx, qy
+        dist[i] = best
+        foot[i, 0] = fx
+        foot[i, 1] = fy
+    return dist, foot
+
+
+@nb.njit(cache=True)
 def points_in_balls(q, radius, v, size):  # type: ignore[no-untyped-def]
     """Pairs (i, j) with ``|v_j - q_i| <= radius_i``, for points ``q (m, 2)``, radii
     ``radius (m,)`` and points ``v (n, 2)``, from a uniform grid of cells ``size`` wide over v

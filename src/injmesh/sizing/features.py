@@ -194,22 +194,10 @@ def _nearest_on_boundary(
     tied = np.any(dist_k[:, 1:] == dist_k[:, :-1], axis=1)
     if tied.any():
         near[tied] = cKDTree(seg_a).query(p[tied], k=k)[1].reshape(-1, k)
-    return _nearest_of_segments(p, np.concatenate([near, prev[near]], axis=1), seg_a, seg_b)
+    from ..kernels.outline import nearest_of_segments
 
-
-def _nearest_of_segments(p: FloatArray, cand: NDArray[np.intp], seg_a: FloatArray,
-                        seg_b: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """The distance from each point of ``p (n, 2)`` to the nearest of its candidate segments
-    ``cand (n, c)`` (rows of ``seg_a``, ``seg_b``), and the foot on it."""
-    a, b = seg_a[cand], seg_b[cand]
-    ab = b - a
-    L2 = np.maximum(np.einsum("nkj,nkj->nk", ab, ab), np.finfo(float).tiny)
-    t = np.clip(np.einsum("nkj,nkj->nk", p[:, None, :] - a, ab) / L2, 0.0, 1.0)
-    foot = a + t[..., None] * ab
-    dist = np.hypot(*(p[:, None, :] - foot).transpose(2, 0, 1))
-    best = np.argmin(dist, axis=1)
-    rows = np.arange(len(p))
-    return dist[rows, best], foot[rows, best]
+    return nearest_of_segments(p, np.ascontiguousarray(np.concatenate([near, prev[near]], axis=1)),
+                               seg_a, seg_b)  # type: ignore[no-any-return]
 
 
 def thinnest_gap(domain: Domain, grid: Background, corner_angle: float,
