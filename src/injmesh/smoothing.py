@@ -566,17 +566,17 @@ class _Relaxation:
         of nodes past ``RETRIANGULATE``, and checking every edge of the mesh for them cost
         more than the steps.  An edge between nodes that drifted less stays as it was (at
         worst nearly Delaunay) until one of them drifts further; ``final`` flips everywhere.
+        ``everywhere`` is ``final``'s on a relaxation with ``active`` nodes (the repair's
+        patches): only they moved, so the flips start from all their triangles.
         """
         from .kernels.delaunay import flip_rows_to_delaunay, flips_logged
 
         moved: IntArray | None = None
         log: NDArray[np.int64] | None = None
-        if everywhere and self._active is not None:
-            # Only the repair's active nodes moved: the flips start from their triangles.
+        if everywhere:
+            assert self._active is not None  # final() flips a whole relaxation itself
             rows = np.flatnonzero(self._active[self._t32].any(axis=1)).astype(np.int32)
             res = int(flip_rows_to_delaunay(self.p, self._t32, self._nbr, self._con, self._vt, rows))
-        elif everywhere:
-            res = self._k_flip(self.p, self._t32, self._nbr, self._con, self._vt)
         else:
             moved, rows = self._k.drifted(self.p, self.anchor, self.hbar, LOCAL_DRIFT, self._t32)
             res, log = flips_logged(self.p, self._t32, self._nbr, self._con, self._vt, rows, False)
@@ -650,13 +650,6 @@ class _Relaxation:
         self._inside_depth(nodes[self._is_free[nodes]])
         self.anchor[nodes] = p[nodes]
         self.retriangulations += 1
-
-    @staticmethod
-    def _k_flip(p: FloatArray, tri: Int32Array, nbr: Int32Array, con: NDArray[np.uint8],
-                vt: Int32Array) -> int:
-        from .kernels.delaunay import flip_to_delaunay as flip_kernel
-
-        return int(flip_kernel(p, tri, nbr, con, vt))
 
     def run(self, force: Literal["attractive", "spring"], steps: int, tail: int = 0) -> bool:
         """Up to ``steps`` Euler steps; True when the convergence test was met.

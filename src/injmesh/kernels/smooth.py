@@ -167,12 +167,7 @@ def adjacency(n, tri, slack=0):  # type: ignore[no-untyped-def]
     adj = adj[:w].copy()
     # Bars are the entries with j > i, numbered in CSR order (= lexicographic order).
     eid = np.full(w, -1, dtype=np.int64)
-    k = 0
-    for v in range(n):
-        for e in range(indptr[v], indptr[v + 1]):
-            if adj[e] > v:
-                k += 1
-    bars = np.empty((k, 2), dtype=np.int64)
+    bars = np.empty(((w - slack * n) // 2, 2), dtype=np.int64)  # each bar in two rows
     b = 0
     for v in range(n):
         for e in range(indptr[v], indptr[v + 1]):
@@ -306,6 +301,20 @@ def threaded_renew_sizes(p, nodes, indptr, adj, eid, ld, dt, gain, mean, hbar, d
                                                        gain, mean, hbar, damp))
 
 
+@njit(cache=True, inline="always")
+def _fold(i, mv, dr, tol, worst, at, drift, count):  # type: ignore[no-untyped-def]
+    """Node i's move ``mv`` and drift ``dr`` (over hbar) folded into a step's reductions:
+    the largest move and its node (the first on ties), the largest drift, moves above tol."""
+    if mv > tol:
+        count += 1
+    if mv > worst:
+        worst = mv
+        at = i
+    if dr > drift:
+        drift = dr
+    return worst, at, drift, count
+
+
 @njit(cache=True, nogil=True)
 def advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near, tol):  # type: ignore[no-untyped-def]
     """Euler step (2.4) of the free nodes: ``p_i += dt * hbar_i * total_i``, the step clamped to
@@ -336,15 +345,9 @@ def advance(p, free, total, hbar, dt, step_cap, deep, anchor, cand, near, tol): 
         if deep[i]:
             p[i, 0] += sx
             p[i, 1] += sy
-            mv = length / hb
-            if mv > tol:
-                count += 1
-            if mv > worst:
-                worst = mv
-                at = i
-            dr = _norm(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) / hb
-            if dr > drift:
-                drift = dr
+            worst, at, drift, count = _fold(i, length / hb,
+                                            _norm(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) / hb,
+                                            tol, worst, at, drift, count)
         else:
             cand[c, 0] = p[i, 0] + sx
             cand[c, 1] = p[i, 1] + sy
@@ -916,17 +919,12 @@ def take_near(p, near, cand, c, ok, hbar, anchor, tol, worst, at, drift, count):
             continue
         i = near[r]
         hb = hbar[i]
-        mv = math.hypot(cand[r, 0] - p[i, 0], cand[r, 1] - p[i, 1]) / hb
-        if mv > tol:
-            count += 1
-        if mv > worst:
-            worst = mv
-            at = i
+        worst, at, drift, count = _fold(
+            i, math.hypot(cand[r, 0] - p[i, 0], cand[r, 1] - p[i, 1]) / hb,
+            math.hypot(cand[r, 0] - anchor[i, 0], cand[r, 1] - anchor[i, 1]) / hb,
+            tol, worst, at, drift, count)
         p[i, 0] = cand[r, 0]
         p[i, 1] = cand[r, 1]
-        dr = math.hypot(cand[r, 0] - anchor[i, 0], cand[r, 1] - anchor[i, 1]) / hb
-        if dr > drift:
-            drift = dr
     return worst, at, drift, count
 
 
@@ -937,13 +935,7 @@ def fold_moves(nodes, moved, p, anchor, hbar, tol, worst, at, drift, count):  # 
     ``nodes``, moved or not."""
     for r in range(nodes.shape[0]):
         i = nodes[r]
-        mv = moved[r]
-        if mv > tol:
-            count += 1
-        if mv > worst:
-            worst = mv
-            at = i
-        dr = math.hypot(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) / hbar[i]
-        if dr > drift:
-            drift = dr
+        worst, at, drift, count = _fold(
+            i, moved[r], math.hypot(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) / hbar[i],
+            tol, worst, at, drift, count)
     return worst, at, drift, count
