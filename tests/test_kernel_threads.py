@@ -197,7 +197,11 @@ def test_threaded_signed_distance_equals_serial(seed: int, n: int, chunks: int) 
     from injmesh.kernels.brep import nearest, signed_distance
 
     rng = np.random.default_rng(seed)
-    angles = np.sort(rng.uniform(0, 2 * np.pi, 12))
+    # One vertex per 30-degree sector: no gap between angles reaches 60 degrees, so every
+    # edge stays further than 0.5 cos(30) = 0.43 from the origin and the hole (radius <= 0.2)
+    # touches nothing (sorted uniform angles left a gap of 130 degrees now and then, and the
+    # shell's edge crossed the hole: seed 5802).
+    angles = (np.arange(12) + rng.uniform(0.1, 0.9, 12)) * (2 * np.pi / 12)
     ring = np.column_stack([np.cos(angles), np.sin(angles)]) * rng.uniform(0.5, 1.0, (12, 1))
     # A hole touching nothing, and a circle-minus-square: arcs and segments.
     poly = Polygon(ring, holes=[0.2 * ring[::-1]])
