@@ -401,7 +401,7 @@ def thin_mask(p: np.ndarray, t: np.ndarray, shape: Any, size: Any) -> np.ndarray
     """Triangles in the thin parts (width at the centroid below ``LAYERS * h``), not at a vertex
     sharper than ``SHARP`` (see the module docstring, ``thin``)."""
     cen = p[t].mean(axis=1)
-    h = np.full(len(t), float(size)) if np.isscalar(size) else np.asarray(size(cen), dtype=float)
+    h = np.asarray(size(cen) if callable(size) else np.full(len(t), size), dtype=float)
     free = corner_bounds(p, t, shape) >= 1.0
     thin = np.zeros(len(t), dtype=bool)
     if free.any():
