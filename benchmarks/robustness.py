@@ -372,28 +372,46 @@ def widths(points: np.ndarray, rings: list[np.ndarray], limit: float | np.ndarra
     """The domain's width at each point (inside it): the chord through the point along the
     direction from its nearest boundary point (see the module docstring, ``thin``).
 
-    Points whose distance to the boundary is at least ``limit / 2`` (scalar or per point) are
-    not measured (their width is at least ``limit``): they get ``inf``.
+    Only widths below ``limit`` (scalar or per point) are measured; the others are ``inf``.
+    The boundary's segments are in a shapely STRtree: the nearest one gives the depth and the
+    foot, and the ray from the point away from the foot, cut where the width would reach
+    ``limit``, is tested against the segments it may cross.
     """
     import shapely
 
     pts = np.asarray(points, dtype=float)
-    dom = domain_region(rings)
-    boundary = dom.boundary
-    shapely.prepare(boundary)
-    geoms = shapely.points(pts)
-    depth = shapely.distance(boundary, geoms)
+    a = np.concatenate(rings)
+    b = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
+    tree = shapely.STRtree(shapely.linestrings(np.stack([a, b], axis=1)))
+    (which, seg), depth = tree.query_nearest(shapely.points(pts), return_distance=True, all_matches=False)
+    assert np.array_equal(which, np.arange(len(pts)))  # one nearest segment per point, in order
+    lim = np.broadcast_to(np.asarray(limit, dtype=float), depth.shape)
     out = np.full(len(pts), np.inf)
-    todo = np.flatnonzero(2 * depth < np.broadcast_to(limit, depth.shape))
+    todo = np.flatnonzero(2 * depth < lim)
     if len(todo) == 0:
         return out
-    foot = shapely.get_coordinates(shapely.shortest_line(boundary, geoms[todo])).reshape(-1, 2, 2)[:, 0]
-    c = pts[todo]
-    u = (c - foot) / depth[todo, None]
-    reach = 2.0 * float(np.hypot(*np.ptp(np.concatenate(rings), axis=0)))
-    rays = shapely.linestrings(np.stack([c, c + reach * u], axis=1))
-    exits = shapely.intersection(boundary, rays)
-    out[todo] = depth[todo] + shapely.distance(geoms[todo], exits)
+    c, d = pts[todo], depth[todo]
+    sa, sb = a[seg[todo]], b[seg[todo]]
+    ab = sb - sa
+    s = np.clip(np.einsum("ij,ij->i", c - sa, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
+    u = (c - (sa + s[:, None] * ab)) / d[:, None]
+    reach = np.minimum(lim[todo] - d, 2.0 * float(np.hypot(*np.ptp(a, axis=0))))
+    rays = shapely.linestrings(np.stack([c, c + reach[:, None] * u], axis=1))
+    ray, hit = tree.query(rays, predicate="intersects")
+    if len(ray) == 0:
+        return out
+    # Where the ray c + t u crosses segment a + s (b - a): t = ((a - c) x (b - a)) / (u x (b - a));
+    # a segment along the ray (no crossing) is met at its nearer end.
+    ca, cb = a[hit] - c[ray], b[hit] - c[ray]
+    e = cb - ca
+    den = u[ray, 0] * e[:, 1] - u[ray, 1] * e[:, 0]
+    num = ca[:, 0] * e[:, 1] - ca[:, 1] * e[:, 0]
+    along = np.minimum(np.einsum("ij,ij->i", ca, u[ray]), np.einsum("ij,ij->i", cb, u[ray]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(np.abs(den) > 1e-12 * np.hypot(*e.T), num / den, np.maximum(along, 0.0))
+    first = np.full(len(todo), np.inf)
+    np.minimum.at(first, ray, t)
+    out[todo] = d + first
     return out
 
 
