@@ -244,6 +244,55 @@ def test_thin_channel_with_digitised_walls_keeps_its_quality(width: float, step:
     assert np.all(np.hypot(gap[..., 0], gap[..., 1]).min(axis=0) < 1e-9)
 
 
+def _spike(angle: float) -> Polygon:
+    """A spike of ``angle`` degrees with its tip at the origin, walls about 1 long."""
+    t = math.tan(math.radians(angle) / 2)
+    return Polygon([(0, 0), (1, -t), (1.2, 0), (1, t)])
+
+
+def _falling(p: np.ndarray) -> np.ndarray:
+    """A size that falls away from the origin at slope 0.2 (as a gradation-limited feature
+    size can near a tip), 0.0124 there and 0.01 beyond r = 0.012."""
+    return 0.01 + 0.2 * np.maximum(0.0, 0.012 - np.hypot(p[:, 0], p[:, 1]))
+
+
+@pytest.mark.parametrize("angle", [5.0, 10.0, 20.0])
+def test_sharp_tip_walls_are_graded_in_step_from_r1(angle: float) -> None:
+    """Both walls of a sharp corner get their first node at r1 = h(tip) and then steps of
+    about kappa r, even where h falls away from the tip (the first node came before r1 and
+    the next step was 1.5-2.3 kappa r; landing on r1 itself, walls 0.8 % out of step let the
+    tip segment be halved again and again)."""
+    b = mesh_boundary(_spike(angle), as_size_function(_falling), np.empty((0, 2)), max_nodes=BUDGET)
+    kappa = math.log1p(2 * math.sin(math.radians(angle) / 2))
+    r1 = float(_falling(np.zeros((1, 2)))[0])
+    walls = [np.sort(np.hypot(*b.points[side & (b.points[:, 0] < 0.5)].T)) for side in
+             (b.points[:, 1] < 0, b.points[:, 1] > 0)]
+    upper = walls[1][walls[1] > 0]  # the tip itself has y = 0
+    for r in (walls[0], upper):
+        assert r[0] == pytest.approx(r1, rel=1e-6)
+        steps = np.diff(r[:4]) / (kappa * r[:3])  # 20 degrees reaches h after four steps
+        assert np.all((steps > 0.9) & (steps < 1.25)), steps
+    assert np.allclose(walls[0][:6], upper[:6], rtol=1e-6)
+
+
+def test_sharp_tip_strip_next_to_the_tip_is_well_shaped() -> None:
+    import warnings
+
+    import injmesh
+
+    for angle in (5.0, 10.0):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            mesh = injmesh.generate(_spike(angle), _falling)
+        q = mesh.quality()
+        tip = np.hypot(*mesh.points.T) < 1e-12
+        at_tip = tip[mesh.triangles].any(axis=1)
+        strip = ~at_tip & (np.hypot(*mesh.points[mesh.triangles].mean(axis=1).T) < 0.1)
+        assert at_tip.sum() == 1 and strip.any()
+        # Nearly square trapezoids, two triangles each: q ~0.8 (0.64 and 0.71 before).
+        assert q[strip].min() >= 0.75, (angle, q[strip].min())
+
+
 def test_nearest_segments_agree_with_brute_force() -> None:
     from injmesh.boundary import _nearest_segments
 
