@@ -50,6 +50,22 @@ itself); ``away``, q_min over the triangles with no node on an input vertex shar
 ``corner``, the smallest q / bound over the triangles at those vertices (1.0: the best the
 angle allows).
 
+``thin`` is q_min over the triangles in the domain's **thin parts** (issue 8, item 7: "thin parts
+keep q_min >= 0.7").  A triangle is in a thin part when the domain's width at its centroid c is
+below ``LAYERS`` (= 2, injmesh's default ``feature_layers``) times h(c), the case's own size at c:
+exactly where item 3's ``min(h, feature_size / layers)`` makes the mesher refine, so these are the
+triangles that promise is about.  The width is this script's own estimate (shapely, not
+injmesh's ``feature_size``: a second opinion): the length of the chord of the domain through c
+along the direction from c's nearest boundary point b, ``|c - b|`` plus the distance from c to
+where the ray from b through c first leaves the domain.  Across a channel of width w it is w
+everywhere; between a hole and the wall it is the gap; in a lobe, or near a convex corner (the
+ray from a wall goes across the lobe; from a corner vertex it goes along the bisector), it is the
+lobe's size, so corners of thick regions do not count.  The chord is at least ``2 |c - b|``, so
+only centroids closer to the boundary than ``LAYERS * h / 2`` are measured.  Triangles with a node
+on an input vertex sharper than ``SHARP`` are left out, as for ``away`` (a wedge's tip is thin
+and capped by its angle; ``corner`` judges it).  ``thin cases`` counts the meshes that have
+any thin triangle at all; the thin percentiles are over those meshes only.
+
 Usage::
 
     python benchmarks/robustness.py [--count 1000] [--seed 0] [--timeout 60] [--jobs 1]
@@ -86,6 +102,7 @@ ON_BOUNDARY = 1e-6  # of the diameter
 DUPLICATE = 1e-6  # of the diameter: nodes closer than the on-boundary tolerance are one point
 CORNER_TURN = 20.0  # degrees
 SHARP = 30.0  # degrees: a vertex sharper than this caps the quality of the triangles at it
+LAYERS = 2.0  # a part narrower than LAYERS * h is thin (injmesh's default feature_layers)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -120,6 +137,8 @@ class Result:
     cleaning: dict[str, int] = field(default_factory=dict)
     moved: float = 0.0  # Hausdorff distance between the raw and the cleaned outline, in h0
     q_corner: float = math.nan
+    q_thin: float = math.nan  # q_min over the triangles in thin parts (NaN: no thin part)
+    n_thin: int = 0  # triangles in thin parts
     min_angle: float = math.nan
     h0: float = math.nan
     graded: float = 0.0
@@ -301,15 +320,9 @@ def cleaned_shape(domain: Any, size: Any, shape: Any, h0: float) -> tuple[Any, f
     return SimpleNamespace(rings=rings), float(shapely.hausdorff_distance(raw, new)) / h0
 
 
-def corner_split_quality(p: np.ndarray, t: np.ndarray, q: np.ndarray, shape: Any) -> tuple[float, float]:
-    """q_min away from sharp corners, and q relative to the angle's bound at them.
-
-    A triangle *at* a sharp corner has a node on a polygon vertex whose interior angle is below
-    ``SHARP`` degrees; its q is capped by that angle (:func:`corner_bound`).  Returns the
-    smallest q of the other triangles (NaN if there are none) and the smallest ratio q / bound
-    over the triangles at sharp corners (NaN if the shape has none), each triangle judged by
-    the sharpest vertex it touches.
-    """
+def corner_bounds(p: np.ndarray, t: np.ndarray, shape: Any) -> np.ndarray:
+    """Per triangle, the bound on q of the sharpest input vertex (< ``SHARP``) it has a node on,
+    1.0 for a triangle with no node on such a vertex (:func:`corner_bound`)."""
     from scipy.spatial import cKDTree
 
     from injmesh.shapes import interior_angles
@@ -325,11 +338,94 @@ def corner_split_quality(p: np.ndarray, t: np.ndarray, q: np.ndarray, shape: Any
         hit = dist <= ON_BOUNDARY * diam
         caps = np.array([corner_bound(a) for a in angles[sharp][hit]])
         np.minimum.at(bound, node[hit], caps)
-    tri_bound = bound[t].min(axis=1)
+    out: np.ndarray = bound[t].min(axis=1)
+    return out
+
+
+def corner_split_quality(p: np.ndarray, t: np.ndarray, q: np.ndarray, shape: Any) -> tuple[float, float]:
+    """q_min away from sharp corners, and q relative to the angle's bound at them.
+
+    A triangle *at* a sharp corner has a node on a polygon vertex whose interior angle is below
+    ``SHARP`` degrees; its q is capped by that angle (:func:`corner_bound`).  Returns the
+    smallest q of the other triangles (NaN if there are none) and the smallest ratio q / bound
+    over the triangles at sharp corners (NaN if the shape has none), each triangle judged by
+    the sharpest vertex it touches.
+    """
+    tri_bound = corner_bounds(p, t, shape)
     at_corner = tri_bound < 1.0
     q_free = float(q[~at_corner].min()) if (~at_corner).any() else math.nan
     q_corner = float((q[at_corner] / tri_bound[at_corner]).min()) if at_corner.any() else math.nan
     return q_free, q_corner
+
+
+def domain_region(rings: list[np.ndarray]) -> Any:
+    """The even-odd region of ``rings`` (shapely): holes, islands in holes, whatever the nesting."""
+    import shapely
+
+    dom = shapely.Polygon(rings[0])
+    for r in rings[1:]:
+        dom = shapely.symmetric_difference(dom, shapely.Polygon(r))
+    return dom
+
+
+def widths(points: np.ndarray, rings: list[np.ndarray], limit: float | np.ndarray) -> np.ndarray:
+    """The domain's width at each point (inside it): the chord through the point along the
+    direction from its nearest boundary point (see the module docstring, ``thin``).
+
+    Only widths below ``limit`` (scalar or per point) are measured; the others are ``inf``.
+    The boundary's segments are in a shapely STRtree: the nearest one gives the depth and the
+    foot, and the ray from the point away from the foot, cut where the width would reach
+    ``limit``, is tested against the segments it may cross.
+    """
+    import shapely
+
+    pts = np.asarray(points, dtype=float)
+    a = np.concatenate(rings)
+    b = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
+    tree = shapely.STRtree(shapely.linestrings(np.stack([a, b], axis=1)))
+    (which, seg), depth = tree.query_nearest(shapely.points(pts), return_distance=True, all_matches=False)
+    assert np.array_equal(which, np.arange(len(pts)))  # one nearest segment per point, in order
+    lim = np.broadcast_to(np.asarray(limit, dtype=float), depth.shape)
+    out = np.full(len(pts), np.inf)
+    todo = np.flatnonzero(2 * depth < lim)
+    if len(todo) == 0:
+        return out
+    c, d = pts[todo], depth[todo]
+    sa, sb = a[seg[todo]], b[seg[todo]]
+    ab = sb - sa
+    s = np.clip(np.einsum("ij,ij->i", c - sa, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
+    u = (c - (sa + s[:, None] * ab)) / d[:, None]
+    reach = np.minimum(lim[todo] - d, 2.0 * float(np.hypot(*np.ptp(a, axis=0))))
+    rays = shapely.linestrings(np.stack([c, c + reach[:, None] * u], axis=1))
+    ray, hit = tree.query(rays, predicate="intersects")
+    if len(ray) == 0:
+        return out
+    # Where the ray c + t u crosses segment a + s (b - a): t = ((a - c) x (b - a)) / (u x (b - a));
+    # a segment along the ray (no crossing) is met at its nearer end.
+    ca, cb = a[hit] - c[ray], b[hit] - c[ray]
+    e = cb - ca
+    den = u[ray, 0] * e[:, 1] - u[ray, 1] * e[:, 0]
+    num = ca[:, 0] * e[:, 1] - ca[:, 1] * e[:, 0]
+    along = np.minimum(np.einsum("ij,ij->i", ca, u[ray]), np.einsum("ij,ij->i", cb, u[ray]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(np.abs(den) > 1e-12 * np.hypot(*e.T), num / den, np.maximum(along, 0.0))
+    first = np.full(len(todo), np.inf)
+    np.minimum.at(first, ray, t)
+    out[todo] = d + first
+    return out
+
+
+def thin_mask(p: np.ndarray, t: np.ndarray, shape: Any, size: Any) -> np.ndarray:
+    """Triangles in the thin parts (width at the centroid below ``LAYERS * h``), not at a vertex
+    sharper than ``SHARP`` (see the module docstring, ``thin``)."""
+    cen = p[t].mean(axis=1)
+    h = np.asarray(size(cen) if callable(size) else np.full(len(t), size), dtype=float)
+    free = corner_bounds(p, t, shape) >= 1.0
+    thin = np.zeros(len(t), dtype=bool)
+    if free.any():
+        limit = LAYERS * h[free]
+        thin[free] = widths(cen[free], [np.asarray(r, dtype=float) for r in shape.rings], limit) < limit
+    return thin
 
 
 def quality(p: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -386,9 +482,7 @@ def check_mesh(
     defects["nonmanifold_edge"] = int(np.count_nonzero(cnt > 2) + np.count_nonzero(dcnt > 1))
     bedges = directed[cnt[inv.ravel()] == 1]
 
-    dom = shapely.Polygon(rings[0] - origin)
-    for r in rings[1:]:  # even-odd: holes, islands in holes, ... whatever the nesting
-        dom = shapely.symmetric_difference(dom, shapely.Polygon(r - origin))
+    dom = domain_region([r - origin for r in rings])
     boundary = dom.boundary
     shapely.prepare(dom)
     shapely.prepare(boundary)
@@ -457,6 +551,30 @@ def selftest() -> None:
     cut = cut[~np.all(cut == [1.0, -0.0875], axis=1)]
     assert check_mesh(*mesh(dip, cut), Shape(dip, []), 0.1) == ({}, 0)
     assert abs(corner_bound(60) - 1) < 1e-12 and abs(corner_bound(5) - 0.16687) < 1e-4
+    # Widths: two unit squares joined by a channel 0.1 wide, a hole 0.06 from the left
+    # square's floor.  Across the channel and the gap: the gap; in the squares, at their convex
+    # corners and at the channel's mouth: the square (about 1, or not measured below 0.2).
+    bell = np.array([(0, 0), (1, 0), (1, 0.45), (2, 0.45), (2, 0), (3, 0), (3, 1), (2, 1), (2, 0.55),
+                     (1, 0.55), (1, 1), (0, 1)], dtype=float)
+    hole = np.array([(0.3, 0.06), (0.3, 0.4), (0.7, 0.4), (0.7, 0.06)], dtype=float)
+    probe = np.array([(1.5, 0.5), (1.5, 0.46), (1.02, 0.54), (0.5, 0.03), (0.5, 0.02 + 0.5),
+                      (0.03, 0.03), (0.02, 0.05), (0.95, 0.5), (2.97, 0.98), (0.5, 0.8)])
+    w = widths(probe, [bell, hole], 0.2)
+    want = [0.1, 0.1, 0.1, 0.06]
+    assert np.allclose(w[:4], want, atol=1e-9) and np.all(w[4:] > 0.2), w
+    # thin_mask on a Delaunay mesh of the dumbbell: the channel's triangles, no others.
+    nodes = sample(bell, 0.05)
+    xs, ys = np.meshgrid(np.arange(0.05, 3.0, 0.05), np.arange(0.05, 1.0, 0.05))
+    inner = np.column_stack([xs.ravel(), ys.ravel()])
+    inner = inner[(np.abs(inner[:, 0] - 1.5) > 0.55) & (np.abs(inner[:, 0] - 1.5) < 1.45)]
+    p = np.vstack([nodes, inner])
+    t = Delaunay(p).simplices
+    cen = p[t].mean(axis=1)
+    t = t[shapely.contains_xy(shapely.Polygon(bell), cen[:, 0], cen[:, 1])]
+    cen = p[t].mean(axis=1)
+    thin = thin_mask(p, t, Shape(bell, []), 0.1)
+    channel = np.abs(cen[:, 0] - 1.5) < 0.5
+    assert np.array_equal(thin, channel), (np.count_nonzero(thin), np.count_nonzero(channel))
     print("checker self-test passed")
 
 
@@ -522,6 +640,13 @@ def run_case(case: Case) -> Result:
     res.q_min = float(q.min())
     if len(t):
         res.q_free, res.q_corner = corner_split_quality(p, t, q, shape)
+        try:
+            thin = thin_mask(p, t, target, size)
+        except Exception as exc:
+            res.status, res.detail = "crashed", f"thin parts: {type(exc).__name__}: {exc}"
+            return res
+        res.n_thin = int(np.count_nonzero(thin))
+        res.q_thin = float(q[thin].min()) if res.n_thin else math.nan
     stats_valid = getattr(mesh.stats, "valid", None)
     if res.defects:
         res.status = "invalid"
@@ -703,7 +828,7 @@ def table(results: list[Result]) -> str:
     fams = sorted({r.family for r in results})
     head = ("| family | cases | valid | invalid | (silent) | refused | crashed | timeout | lost | cases <30° "
             "| q_min 1% | 10% | median | away 1% | away 10% | away median | corner 1% | corner 10% "
-            "| corner median | median s |")
+            "| corner median | thin cases | thin 1% | thin 10% | thin median | median s |")
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for name, group in [*[(f, [r for r in results if r.family == f]) for f in fams], ("**all**", results)]:
         c = Counter(r.status for r in group)
@@ -711,12 +836,14 @@ def table(results: list[Result]) -> str:
         q = [r.q_min for r in meshed]
         qf = [r.q_free for r in meshed]
         qc = [r.q_corner for r in meshed]
+        qt = [r.q_thin for r in meshed]
         secs = [r.seconds for r in group if r.status in ("valid", "invalid") and not math.isnan(r.seconds)]
         lines.append(
             f"| {name} | {len(group)} | {c['valid']} | {c['invalid']} | {sum(r.silent for r in group)} | "
             f"{c['refused']} | {c['crashed']} | {c['timeout']} | {sum(r.lost for r in group)} | "
             f"{sum(r.min_angle < 30 for r in group)} | {pct(q, 1)} | {pct(q, 10)} | {pct(q, 50)} | "
             f"{pct(qf, 1)} | {pct(qf, 10)} | {pct(qf, 50)} | {pct(qc, 1)} | {pct(qc, 10)} | {pct(qc, 50)} | "
+            f"{sum(r.n_thin > 0 for r in meshed)} | {pct(qt, 1)} | {pct(qt, 10)} | {pct(qt, 50)} | "
             f"{pct(secs, 50)} |"
         )
     return "\n".join(lines)
@@ -742,7 +869,9 @@ def report(results: list[Result], args: argparse.Namespace) -> list[Result]:
           f" away: q_min over the triangles with no node on an input vertex sharper than {SHARP:g} degrees "
           f"-- the same target, on the triangles no input angle caps.\n"
           f" corner: min over the triangles at such vertices of q / the best q the vertex angle allows "
-          f"(a fan of equal wedges) -- issue item 7, 1.0 is the best possible.)")
+          f"(a fan of equal wedges) -- issue item 7, 1.0 is the best possible.\n"
+          f" thin: q_min over the triangles where the domain is narrower than {LAYERS:g} h (not at those "
+          f"vertices) -- issue item 7's 'thin parts keep q_min >= 0.7'; over the 'thin cases' only.)")
     cases_with: Counter[str] = Counter()
     items: Counter[str] = Counter()
     for r in results:
@@ -769,10 +898,10 @@ def report(results: list[Result], args: argparse.Namespace) -> list[Result]:
         print("warnings: " + ", ".join(f"{k} in {v} cases" for k, v in warned.most_common()))
     worst = sorted(results, key=severity)[:10]
     print("\nworst 10 cases (by the lower of away and corner):\n\n| seed | family | status | detail | q_min "
-          "| away | corner | min angle | h0 | slope | N | s |\n" + "|---" * 12 + "|")
+          "| away | corner | thin | min angle | h0 | slope | N | s |\n" + "|---" * 13 + "|")
     for r in worst:
         print(f"| {r.seed} | {r.family} | {r.status} | {r.detail[:90]} | {r.q_min:.3f} | {r.q_free:.3f} | "
-              f"{r.q_corner:.3f} | "
+              f"{r.q_corner:.3f} | {r.q_thin:.3f} | "
               f"{r.min_angle:.1f} | {r.h0:.3f} | {r.graded:.2f} | {r.n_points} | {r.seconds:.2f} |")
     fam = f" --family {args.family}" if args.family else ""
     print("\nreproduce one: python benchmarks/robustness.py --count 1 --seed SEED" + fam)
@@ -807,13 +936,14 @@ def main(argv: list[str] | None = None) -> int:
         cases = [Case(seed=0, real=name, save=args.save) for name in REAL_CASES]
         results = run_all(cases, args.jobs, timeout, args.memory)
         print(f"\nreal outlines (timeout {timeout:g} s per case)\n")
-        print("| case | vertices | status | detail | cleaned | N | q_min | away | corner | min angle "
-              "| seconds |\n" + "|---" * 11 + "|")
+        print("| case | vertices | status | detail | cleaned | N | q_min | away | corner | thin | min angle "
+              "| seconds |\n" + "|---" * 12 + "|")
         for r in results:
             cleaned = ", ".join(f"{k} {v}" for k, v in r.cleaning.items())
             cleaned = f"{cleaned} (moved <= {r.moved:.2g} h)" if cleaned else "-"
             print(f"| {r.label or r.family} | {r.n_vertices} | {r.status} | {r.detail} | {cleaned} | "
-                  f"{r.n_points} | {r.q_min:.3f} | {r.q_free:.3f} | {r.q_corner:.3f} | {r.min_angle:.2f} | "
+                  f"{r.n_points} | {r.q_min:.3f} | {r.q_free:.3f} | {r.q_corner:.3f} | {r.q_thin:.3f} | "
+                  f"{r.min_angle:.2f} | "
                   f"{r.seconds:.1f} |")
         print("\ntargets: all valid, q_min >= 0.3, the 20,000-vertex outline in < 10 s")
         return 0

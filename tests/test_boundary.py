@@ -206,6 +206,93 @@ def test_close_corners_are_nodes_of_well_shaped_triangles() -> None:
     assert mesh.quality().min() > 0.65
 
 
+def _digitised_neck(width: float, step: float) -> Polygon:
+    """Two 0.8 x 0.8 squares joined by a gently bent channel ``width`` wide and 0.8 long whose
+    walls are polylines with vertices ``step`` apart, each turning by under a degree."""
+    x = np.linspace(-0.4, 0.4, round(0.8 / step) + 1)
+    bend = 0.03 * np.sin(np.pi * (x + 0.4) / 0.8)
+    bottom = np.stack([x, bend - 0.5 * width], axis=1)
+    top = np.stack([x, bend + 0.5 * width], axis=1)[::-1]
+    right = [(0.4, -0.4), (1.2, -0.4), (1.2, 0.4), (0.4, 0.4)]
+    left = [(-0.4, 0.4), (-1.2, 0.4), (-1.2, -0.4), (-0.4, -0.4)]
+    return Polygon(np.concatenate([bottom, right, top, left]))
+
+
+@pytest.mark.parametrize(("width", "step"), [(0.08, 0.024), (0.06, 0.02)])
+def test_thin_channel_with_digitised_walls_keeps_its_quality(width: float, step: float) -> None:
+    """A channel thinner than h is sized at width / 2 (feature size, 2 layers); its walls'
+    gently turning vertices, 0.6-0.7 of that apart, are samples of a curve, not nodes that
+    force short boundary edges next to interior edges of width / 2 (q 0.69-0.70 when they
+    were held at every vertex with edges of h/2 or longer)."""
+    import warnings
+
+    import injmesh
+
+    dom = _digitised_neck(width, step)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mesh = injmesh.generate(dom, 0.1)
+    assert mesh.stats.valid
+    centroids = mesh.points[mesh.triangles].mean(axis=1)
+    channel = np.abs(centroids[:, 0]) < 0.4 - width
+    q = mesh.quality()
+    assert channel.sum() > 2 * 0.8 / width  # two layers of triangles across, or more
+    assert q[channel].min() >= 0.75 and q.min() >= 0.7
+    # The channel's ends (90-degree corners) are still nodes.
+    ends = np.array([(s * 0.4, 0.5 * k * width) for s in (-1, 1) for k in (-1, 1)])
+    gap = mesh.points[:, None, :] - ends[None, :, :]
+    assert np.all(np.hypot(gap[..., 0], gap[..., 1]).min(axis=0) < 1e-9)
+
+
+def _spike(angle: float) -> Polygon:
+    """A spike of ``angle`` degrees with its tip at the origin, walls about 1 long."""
+    t = math.tan(math.radians(angle) / 2)
+    return Polygon([(0, 0), (1, -t), (1.2, 0), (1, t)])
+
+
+def _falling(p: np.ndarray) -> np.ndarray:
+    """A size that falls away from the origin at slope 0.2 (as a gradation-limited feature
+    size can near a tip), 0.0124 there and 0.01 beyond r = 0.012."""
+    return 0.01 + 0.2 * np.maximum(0.0, 0.012 - np.hypot(p[:, 0], p[:, 1]))
+
+
+@pytest.mark.parametrize("angle", [5.0, 10.0, 20.0])
+def test_sharp_tip_walls_are_graded_in_step_from_r1(angle: float) -> None:
+    """Both walls of a sharp corner get their first node at r1 = h(tip) and then steps of
+    about kappa r, even where h falls away from the tip (the first node came before r1 and
+    the next step was 1.5-2.3 kappa r; landing on r1 itself, walls 0.8 % out of step let the
+    tip segment be halved again and again)."""
+    b = mesh_boundary(_spike(angle), as_size_function(_falling), np.empty((0, 2)), max_nodes=BUDGET)
+    kappa = math.log1p(2 * math.sin(math.radians(angle) / 2))
+    r1 = float(_falling(np.zeros((1, 2)))[0])
+    walls = [np.sort(np.hypot(*b.points[side & (b.points[:, 0] < 0.5)].T)) for side in
+             (b.points[:, 1] < 0, b.points[:, 1] > 0)]
+    upper = walls[1][walls[1] > 0]  # the tip itself has y = 0
+    for r in (walls[0], upper):
+        assert r[0] == pytest.approx(r1, rel=1e-6)
+        steps = np.diff(r[:4]) / (kappa * r[:3])  # 20 degrees reaches h after four steps
+        assert np.all((steps > 0.9) & (steps < 1.25)), steps
+    assert np.allclose(walls[0][:6], upper[:6], rtol=1e-6)
+
+
+def test_sharp_tip_strip_next_to_the_tip_is_well_shaped() -> None:
+    import warnings
+
+    import injmesh
+
+    for angle in (5.0, 10.0):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            mesh = injmesh.generate(_spike(angle), _falling)
+        q = mesh.quality()
+        tip = np.hypot(*mesh.points.T) < 1e-12
+        at_tip = tip[mesh.triangles].any(axis=1)
+        strip = ~at_tip & (np.hypot(*mesh.points[mesh.triangles].mean(axis=1).T) < 0.1)
+        assert at_tip.sum() == 1 and strip.any()
+        # Nearly square trapezoids, two triangles each: q ~0.8 (0.64 and 0.71 before).
+        assert q[strip].min() >= 0.75, (angle, q[strip].min())
+
+
 def test_nearest_segments_agree_with_brute_force() -> None:
     from injmesh.boundary import _nearest_segments
 

@@ -182,6 +182,7 @@ def mesh_boundary(
     pts, fixed, loop_id = [], [], []
     for k, loop in enumerate(loops):
         p, f = _insert_corners(loop, corners, on, diam)
+        p, f = _tip_marks(domain, p, f, along, on)
         p, f, hp = _refine(domain, along, p, f)
         p, f = _select(domain, p, f, hp)
         pts.append(p)
@@ -239,7 +240,7 @@ def _pin_wedges(h: SizeFn, p: FloatArray, fixed: NDArray[np.bool_], nxt: IntArra
 
 
 class _TipGraded:
-    """h along the walls of sharp corners: ``min(h, r1_c)`` for ``r <= r1_c`` and
+    """h along the walls of sharp corners: ``r1_c`` for ``r <= r1_c`` and
     ``min(h, kappa_c r)`` beyond, within ``reach_c`` of each sharp corner c (r the distance to
     c), h elsewhere."""
 
@@ -255,9 +256,14 @@ class _TipGraded:
         near = np.flatnonzero(np.isfinite(dist))
         if len(near):
             c, r = k[near], dist[near]
-            graded = np.where(r <= self.r1[c], self.r1[c], self.kappa[c] * r)
+            tip = r <= self.r1[c] * (1.0 + 1e-9)  # the wall's mark at r1 (_tip_marks) included
+            # Up to r1 the size is r1 itself, not min(h, r1): the walls' first node must land
+            # at r1, where the grading starts, or the first step beyond it mixes the two sizes
+            # (where h falls away from the tip, the node came before r1 and the next step was
+            # about 2 kappa r1: a 2:1 trapezoid of q ~0.63 next to a 5-degree tip).
+            graded = np.where(tip, self.r1[c], np.minimum(hp[near], self.kappa[c] * r))
             inside = r < self.reach[c]
-            hp[near] = np.where(inside, np.minimum(hp[near], graded), hp[near])
+            hp[near] = np.where(inside, graded, hp[near])
         return hp
 
 
@@ -446,8 +452,10 @@ def _resolved_vertices(domain: Domain, h: SizeFn) -> FloatArray:
 
 
 #: A polygon vertex turning by more than VERTEX_TURN degrees is a node when both its edges are
-#: at least VERTEX_ARM h long.
-VERTEX_ARM = 0.5
+#: at least VERTEX_ARM h long.  With h/2 a wall digitised at 0.5-1 h kept every vertex, and the
+#: boundary edges between them, that short, met interior edges of h: in a channel thinner than
+#: the user's h, where h is the feature size / 2, that gave q 0.68-0.70 across the channel.
+VERTEX_ARM = 1.0
 VERTEX_TURN = 0.1
 
 #: :func:`corner_size`'s search structure: corners per leaf of its k-d tree, cells of its grid
@@ -759,6 +767,60 @@ def _next(node_loop: IntArray) -> IntArray:
     first = np.repeat(start, end - start + 1)
     last = np.repeat(end, end - start + 1)
     return np.where(idx == last, first, idx + 1)
+
+
+#: :func:`_tip_marks`' second vertex lies this fraction of r1 beyond the first.
+MARK_GAP = 1e-6
+
+
+def _tip_marks(
+    domain: Domain, p: FloatArray, fixed: NDArray[np.bool_], along: SizeFn, on: float
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Insert, as free vertices of the loop ``p``, the points at arc length ``r1`` from each
+    sharp corner's tip along both its walls (:func:`_tip_graded`), where the walls are that long.
+
+    The size along the walls jumps there, from ``r1`` to ``kappa r1``.  Step 1 integrates 1/h
+    linearly between the refined vertices, so a refined segment across the jump smeared it and
+    the walls' first nodes landed a little off ``r1``, each wall by its own refinement; at 5
+    degrees walls out of step by 0.4 % let the opposite node encroach the tip segment, which
+    was then halved again and again (a cascade of tip slivers).  With a vertex at ``r1`` the
+    integral up to it is exact, one h-length, on both walls alike; a second vertex just beyond
+    (``MARK_GAP`` r1 further) takes ``kappa r1``, so the next step is exact too.
+    """
+    tips = getattr(along, "tips", None)
+    if not isinstance(along, _TipGraded) or tips is None or not fixed.any():
+        return p, fixed
+    from scipy.spatial import cKDTree
+
+    held = np.flatnonzero(fixed)
+    dist, which = cKDTree(tips).query(p[held], distance_upper_bound=on)
+    at_tip = np.isfinite(dist)
+    n = len(p)
+    seglen = np.hypot(*(np.roll(p, -1, axis=0) - p).T)
+    keys, marks = [], []
+    for i, c in zip(held[at_tip].tolist(), which[at_tip].tolist(), strict=True):
+        for r in (float(along.r1[c]), float(along.r1[c]) * (1.0 + MARK_GAP)):
+            for step in (1, -1):
+                j, walked = i, 0.0
+                for _ in range(n):
+                    nxt = (j + step) % n
+                    seg = j if step == 1 else nxt  # segment k joins vertices k and k + 1
+                    if walked + seglen[seg] >= r:
+                        frac = (r - walked) / seglen[seg]  # from j towards nxt
+                        if frac < 1.0 - 1e-9 or not fixed[nxt]:
+                            marks.append(p[j] + frac * (p[nxt] - p[j]))
+                            keys.append(seg + (frac if step == 1 else 1.0 - frac))
+                        break
+                    walked += seglen[seg]
+                    j = nxt
+                    if fixed[j]:  # the wall ends before r1 (a short tip: _tip_walls lays it out)
+                        break
+    if not marks:
+        return p, fixed
+    pts = domain.project(np.asarray(marks, dtype=float))  # Eq. 3.2
+    key = np.concatenate([np.arange(n, dtype=float), np.clip(keys, 1e-9, n - 1e-9)])
+    order = np.argsort(key, kind="stable")
+    return np.concatenate([p, pts])[order], np.concatenate([fixed, np.zeros(len(pts), dtype=bool)])[order]
 
 
 def _insert_corners(
