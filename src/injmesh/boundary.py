@@ -420,12 +420,13 @@ def _mouths(domain: Domain, h: SizeFn) -> tuple[FloatArray, FloatArray]:
 TIP_STEPS = 64
 #: Corners with an interior angle below this (degrees) are sharp: see :func:`_pin_wedges`.
 #: Pinning at 30-60 degrees lowered q_min next to the tip (0.70 -> 0.56 on a 45-degree kite).
-#: Below 30 it pays: at 25, the 25-30 degree corners of ``benchmarks/robustness.py``'s 1000
-#: polygons had tip triangles at 0.91 of the angle's bound (walls 0.83 of each other) and
-#: their neighbours at ~0.82; at 30 every tip is at its bound (1 %: 0.999), the neighbours at
-#: ~0.66, and the meshes' q_min percentiles do not change (the lowest triangle of a 25-30
-#: degree corner rose in four of the five worst cases, 0.616 -> 0.665 for one).
-SHARP_CORNER = 30.0
+#: Between 25 and 30 the isosceles tip costs the strip behind it: its triangles have an angle
+#: of 90 + a/2 (q 0.69 at 25 degrees, 0.66 at 30), while unpinned walls come out staggered,
+#: tip at ~0.91 of the angle's bound and strip ~0.82.  Over the sharp corners of
+#: ``benchmarks/robustness.py``'s 1000 polygons (whole-mesh q_min over the sharpest angle's
+#: bound, mean per case), 25 / 28 / 30 gave 0.947 / 0.948 / 0.939 for corners of 25-28
+#: degrees and 0.963 / 0.963 / 0.882 for 28-30: the same up to 28, worse beyond.
+SHARP_CORNER = 25.0
 #: Nodes of a sharp corner's walls are held still where the walls are closer than this times h.
 PIN_WIDTH = 0.8
 
