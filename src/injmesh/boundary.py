@@ -788,9 +788,9 @@ def _tip_marks(
     integral up to it is exact, one h-length, on both walls alike; a second vertex just beyond
     (``MARK_GAP`` r1 further) takes ``kappa r1``, so the next step is exact too.
     """
-    tips = getattr(along, "tips", None)
-    if not isinstance(along, _TipGraded) or tips is None or not fixed.any():
+    if not isinstance(along, _TipGraded) or not fixed.any():
         return p, fixed
+    tips = along.tips
     from scipy.spatial import cKDTree
 
     held = np.flatnonzero(fixed)
