@@ -231,7 +231,7 @@ def test_repair_rounds_stop_when_they_change_nothing(monkeypatch: pytest.MonkeyP
 
     empty = np.zeros((0, 2), dtype=np.intp)
     monkeypatch.setattr(S, "REPAIR_Q", 1.01)  # every triangle is "bad": the rounds always run
-    monkeypatch.setattr(S, "_choose_repairs", lambda relax, p, tri, bad: (empty, empty))
+    monkeypatch.setattr(S, "_choose_repairs", lambda relax, p, tri, bad, chord: (empty, empty))
     monkeypatch.setattr(S, "_patch", still)
     injmesh.generate(Rectangle((0, 0), (1, 1)), 0.2)
     assert calls["n"] == 1

@@ -566,11 +566,11 @@ def test_repair_keeps_each_part_at_its_best_round() -> None:
             p[near] += rng.normal(0.0, 0.008, (int(near.sum()), 2))
         if (signed_areas(p, t) > 0).all():
             break
+    walls = inv[mesh.boundary_edges]
     relax = _Relaxation(square, lambda x: np.full(len(x), 0.04), p, int(on.sum()),
-                        np.zeros((0, 3), dtype=np.intp), np.zeros((0, 2), dtype=np.intp), None, 1000,
-                        tri=t, patch=True)
+                        np.zeros((0, 3), dtype=np.intp), walls, None, 1000, tri=t, patch=True)
     q0 = triangle_quality(p, t)
-    out_p, out_t, kept, _, _ = _repair_rounds(relax, np.arange(len(p)))
+    out_p, out_t, kept, _, _ = _repair_rounds(relax, np.arange(len(p)), int(on.sum()), walls)
     q1 = triangle_quality(out_p, out_t)
     assert (signed_areas(out_p, out_t) > 0).all()
     assert abs(float(np.abs(signed_areas(out_p, out_t)).sum()) - 1.0) < 1e-9
@@ -584,9 +584,10 @@ def test_repair_keeps_each_part_at_its_best_round() -> None:
 
 
 def test_repair_leaves_a_part_pinned_by_a_fixed_triangle(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A part of the repair's sub-mesh whose worst triangle has three fixed nodes keeps that
-    q_min whatever a round does, so it gets no edits at all (its rounds could never be kept); a
-    second part far away, pinned by nothing, is repaired as before."""
+    """A part of the repair's sub-mesh whose worst triangle has three fixed nodes and no chord
+    to split (its longest edge a segment) keeps that q_min whatever a round does, so it gets no
+    edits at all (its rounds could never be kept); a second part far away, pinned by nothing,
+    is repaired as before."""
     from injmesh import generate
     from injmesh import smoothing as S
     from injmesh.quality import signed_areas, triangle_quality
@@ -617,17 +618,20 @@ def test_repair_leaves_a_part_pinned_by_a_fixed_triangle(monkeypatch: pytest.Mon
     pinned_q = q[near_first & (t.max(axis=1) < n_fixed)].min()
     assert pinned_q < q[others].min()
 
+    # Its longest edge is a segment (an interior curve's, say): no chord to split.
+    w = t[np.flatnonzero(near_first & (t.max(axis=1) < n_fixed))[0]]
+    ends = np.stack([w, np.roll(w, -1)], axis=1)
+    wall = ends[np.argmax(np.hypot(*(p[ends[:, 0]] - p[ends[:, 1]]).T))][None, :]
     edited: list[np.ndarray] = []
     choose = S._choose_repairs
 
-    def spy(relax, p, tri, bad):  # type: ignore[no-untyped-def]
+    def spy(relax, p, tri, bad, chord):  # type: ignore[no-untyped-def]
         edited.append(p[tri[bad]].mean(axis=1))
-        return choose(relax, p, tri, bad)
+        return choose(relax, p, tri, bad, chord)
 
     monkeypatch.setattr(S, "_choose_repairs", spy)
     relax = S._Relaxation(square, lambda x: np.full(len(x), 0.02), p, n_fixed,
-                          np.zeros((0, 3), dtype=np.intp), np.zeros((0, 2), dtype=np.intp), None,
-                          1000, tri=t)
+                          np.zeros((0, 3), dtype=np.intp), wall, None, 1000, tri=t)
     out_p, out_t, _, _, _ = S._repair(relax, np.arange(len(p)))
     assert edited, "the unpinned part was not repaired"
     for at in edited:  # no bad triangle of the pinned part was offered for an edit
@@ -719,3 +723,43 @@ def test_fused_step_kernels_equal_the_separate_calls(seed: int, n: int, attracti
     k = int(np.argmax(mv))
     ref_drift = float(np.max(np.hypot(*(pf[nodes] - anchor[nodes]).T) / hbar[nodes]))
     assert got == (float(mv[k]), int(nodes[k]), ref_drift, int(np.count_nonzero(mv > 0.003)))
+
+
+def test_repair_splits_the_chord_of_a_flat_cap_but_never_a_tip_or_a_segment() -> None:
+    """A triangle of three boundary nodes whose longest edge is a chord (inside the domain, not
+    a segment) gets that chord to split (``_chords``); a sharp tip's triangle, whose chord is its
+    shortest edge, and a triangle whose longest edge is a segment get none; nor does a cap whose
+    neighbour across the chord has three boundary nodes too (a strip one triangle wide: the new
+    node would have nowhere to go)."""
+    from injmesh.smoothing import _chords, _keys
+
+    # Boundary nodes 0-4; node 5 free.  (0, 1, 2): a flat cap, chord 0-2 the longest edge;
+    # (2, 3, 4): a sharp tip at 3, its chord 2-4 its shortest edge; (0, 2, 5), (2, 4, 5):
+    # triangles with the free node.
+    p = np.array([(0.0, 0.0), (0.5, -0.3), (1.0, 0.0), (3.0, 0.4), (1.0, 0.5), (0.4, 0.6)])
+    tri = np.array([(0, 1, 2), (2, 3, 4), (0, 2, 5), (2, 4, 5)])
+    walls = np.array([(0, 1), (1, 2), (2, 3), (3, 4)])
+    chord = _chords(p, tri, 5, _keys(walls))
+    assert chord.tolist() == [2, -1, -1, -1]  # edge (tri[0][2], tri[0][0]) = 0-2 only
+    # The same cap with its chord a segment: nothing.
+    assert (_chords(p, tri, 5, _keys(np.concatenate([walls, [(2, 0)]]))) < 0).all()
+    # Node 5 on the boundary too: (0, 2, 5) across the cap's chord has no free node.
+    assert _chords(p, tri, 6, _keys(walls))[0] == -1
+
+
+@pytest.mark.parametrize("h", [0.03, 0.05, 0.07, 0.1])
+def test_square_corners_have_no_flat_cap(h: float) -> None:
+    """At a right-angled corner whose two boundary neighbours are joined by an edge, the cap is
+    a right isosceles triangle (q 0.828) that no node move can change; the repair splits its
+    chord, and the corner's two triangles of 45 degrees do better (q_min 0.91 at these h)."""
+    from injmesh import generate
+    from injmesh.smoothing import REPAIR_Q
+
+    square = Rectangle((0, 0), (1, 1))
+    mesh = generate(square, h)
+    p, t = mesh.points, mesh.triangles
+    on = np.abs(square.sdf(p)) < 1e-9
+    q = mesh.quality()
+    caps = on[t].all(axis=1) & (q < REPAIR_Q)
+    assert not caps.any()
+    assert q.min() > 0.85

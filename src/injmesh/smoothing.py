@@ -17,7 +17,10 @@ Two bar forces are used, in this order (``smoothing="hybrid"``, the default):
    Run to convergence.  It is what makes edges follow h: relative error 0.06-0.09 on the
    paper's cases, q_mean 0.95-0.97.
 3. **Repair.**  In each triangle with q < ``REPAIR_Q``, the edge furthest from h is collapsed
-   (too short) or split (too long) when its nodes are free interior nodes; non-conflicting
+   (too short) or split (too long) when its nodes are free interior nodes; in a triangle of
+   three boundary nodes, its longest edge when that is a chord inside the domain (a flat cap
+   at a blunt corner or across a channel: the new node is free; the unit square's corner caps,
+   q 0.828, become two triangles of q ~0.91).  Non-conflicting
    repairs are applied together, the spring relaxation resumes on the nodes within
    ``REPAIR_RING`` edges of the changed ones only (the rest of the mesh is already at rest),
    and the best round (by q_min) is kept; at most ``REPAIR_ROUNDS`` rounds.  The edits are
@@ -29,8 +32,8 @@ Two bar forces are used, in this order (``smoothing="hybrid"``, the default):
    of whole-mesh arrays per ten rounds before, a fraction of a second now).  Each connected
    part of that sub-mesh keeps its own best round (on a large mesh one worse edit anywhere
    made every round lose; the 1e5 square with regions: q_min 0.722 -> 0.743).  A part whose
-   worst triangle has three fixed nodes (boundary nodes across a strait, a corner's fan) gets
-   no edits: no round could raise its q_min (the 20,000-vertex outline: 2.6 s of rounds saved).
+   worst triangle has three fixed nodes and no chord to split (a sharp tip) gets no edits: no
+   round could raise its q_min (the 20,000-vertex outline: 2.6 s of rounds saved).
 4. **Quality pass.**  Free and sliding nodes of triangles with q < ``OPTIMIZE_Q`` move towards
    the mean equilateral apex over their opposite edges when that raises the worst quality of
    their star (line search, connectivity kept; a node at most ``OPTIMIZE_MOVES`` times, and
@@ -919,7 +922,8 @@ def smooth(
             converged = relax.run("spring", cap)
     polish = converged and smoothing == "hybrid" and cap > 0 and len(p) > n_fixed
     if polish:
-        p, tri, kept, iterations, triangulations = _repair(relax, kept)
+        curves = None if interfaces is None else interfaces.segments
+        p, tri, kept, iterations, triangulations = _repair(relax, kept, curves)
     else:
         tri = relax.final()
         p, iterations, triangulations = relax.p, relax.iterations, relax.retriangulations
@@ -1014,7 +1018,7 @@ def _settle(relax: _Relaxation) -> bool:
 
 
 def _repair(
-    relax: _Relaxation, kept: IntArray
+    relax: _Relaxation, kept: IntArray, curves: IntArray | None = None
 ) -> tuple[FloatArray, IntArray, IntArray, float, int]:
     """Repair rounds (:func:`_repair_rounds`) on the part of the mesh around its bad triangles.
 
@@ -1026,6 +1030,9 @@ def _repair(
     and the sub-mesh's hull is never flipped.  The result is stitched back: surviving nodes
     keep their order, the rounds' new nodes come last.  On a million-node square this takes
     the rounds from about 15 s (ten rounds of whole-mesh arrays) to a fraction of a second.
+
+    ``curves``: the interior curves' segments (:class:`Interfaces`), which, like the
+    boundary's, a repair never splits.
 
     Returns the points, triangles and ``kept`` map, and the total iterations and
     triangulations spent.
@@ -1049,14 +1056,19 @@ def _repair(
     stay = free & ~movable[nodes]
     # Sub-mesh numbering: the mesh's fixed nodes, the band, then the nodes that may move.
     nodes = np.concatenate([nodes[~free], nodes[stay], nodes[free & ~stay]])
-    n_fixed = int(np.count_nonzero(~free) + np.count_nonzero(stay))
+    n_boundary = int(np.count_nonzero(~free))
+    n_fixed = n_boundary + int(np.count_nonzero(stay))
     inv, slide, walls, project = _restricted(relax, nodes, movable)
+    segments = walls
+    if curves is not None and len(curves):
+        inner_curves = inv[curves]
+        segments = np.concatenate([walls, inner_curves[(inner_curves >= 0).all(axis=1)]])
     outer_q = float(q[~inner].min()) if (~inner).any() else np.inf
     sub = _Relaxation(relax.domain, relax.h, p[nodes], n_fixed, slide, walls, relax.callback,
                       relax.cap, tri=inv[tri[inner]], project=project, patch=True, total=relax.total)
     sub.iterations = relax.iterations
     sp, stri, skept, iterations, triangulations = _repair_rounds(
-        sub, np.arange(len(nodes)), outer_q)
+        sub, np.arange(len(nodes)), n_boundary, segments, outer_q)
     triangulations += relax.retriangulations - 1  # the sub-mesh's own set-up is not one
     if sp is sub.p and stri is sub.tri:
         return p, tri, kept, iterations, triangulations
@@ -1079,13 +1091,23 @@ def _repair(
 
 
 def _repair_rounds(
-    relax: _Relaxation, kept: IntArray, outer_q: float = np.inf
+    relax: _Relaxation, kept: IntArray, n_boundary: int, segments: IntArray, outer_q: float = np.inf
 ) -> tuple[FloatArray, IntArray, IntArray, float, int]:
     """Collapse or split the worst edge of bad triangles; keep the best round by q_min, in each
     connected part of the sub-mesh on its own.
 
     Returns the points, triangles and ``kept`` map of the result, and the total iterations and
-    triangulations spent.  A round that does not raise q_min is still the start of the next:
+    triangulations spent.  ``n_boundary``: the first nodes of ``relax`` that are fixed in the
+    whole mesh (the band around the sub-mesh, fixed only here, comes after them);
+    ``segments``: the boundary and interior curve segments, which are never split.
+
+    A triangle whose three nodes are fixed cannot change by moving nodes or collapsing edges;
+    if it is bad and its longest edge is a chord between two boundary nodes (not a segment),
+    that chord is split (:func:`_chords`): a flat cap at a blunt corner or across a channel one
+    triangle wide gets a free node.  The other fixed triangles (a sharp tip, whose q is bounded
+    by its angle) are frozen: they are not repaired.
+
+    A round that does not raise q_min is still the start of the next:
     measured on the paper's cases, later rounds often recover.  Each round relaxes only the
     patch of triangles around its ``REPAIR_RING``-ring of changed nodes (:func:`_patch`), so
     its cost follows the size of the change, not of the mesh.  A round is scored on the
@@ -1122,24 +1144,33 @@ def _repair_rounds(
         np.minimum.at(out, label[tri[:, 0]], q)
         return out
 
+    seg_keys = _keys(segments)
+
+    def repairable(p: FloatArray, tri: IntArray) -> tuple[NDArray[np.bool_], IntArray]:
+        """Which triangles a round can change (a free node, or a chord), and each one's chord
+        to split (-1: none)."""
+        chord = _chords(p, tri, n_boundary, seg_keys)
+        return (tri.max(axis=1) >= relax.n_fixed) | (chord >= 0), chord
+
     rounds: list[tuple[FloatArray, IntArray, IntArray, IntArray]] = [(p, tri, cur_kept, label)]
+    changeable, chord = repairable(p, tri)
     best = part_min(q, tri, label)
+    # A part whose worst triangle is frozen (three fixed nodes and no chord: a sharp tip),
+    # worse than every triangle a round can change, keeps that q_min whatever a round does,
+    # so no round could be kept for it: its bad triangles are left alone.  (The
+    # 20,000-vertex outline is one such part: its rounds cost 2.6 s and were all thrown away.)
+    # Rounds are scored on every triangle: flips after an edit can make new frozen ones.
+    pinned = best < part_min(q[changeable], tri[changeable], label)
     best_round = np.zeros(n_parts, dtype=np.intp)
-    # A part whose worst triangle has three fixed nodes, worse than every triangle with a free
-    # node, keeps that q_min whatever a round does to the rest, so no round can be kept for it:
-    # its bad triangles are left alone.  (The 20,000-vertex outline is one such part: before,
-    # its rounds cost 2.6 s and were all thrown away.)
-    free = tri.max(axis=1) >= relax.n_fixed
-    pinned = best < part_min(q[free], tri[free], label)
     last: FloatArray | None = None
     stalled = 0
     seen = {_topology(tri): p}
     for _ in range(REPAIR_ROUNDS):
-        bad = np.flatnonzero(q < REPAIR_Q)
+        bad = np.flatnonzero((q < REPAIR_Q) & changeable)
         bad = bad[~pinned[label[tri[bad, 0]]]]
         if len(bad) == 0:
             break
-        ops = _choose_repairs(relax, p, tri, bad[np.argsort(q[bad], kind="stable")])
+        ops = _choose_repairs(relax, p, tri, bad[np.argsort(q[bad], kind="stable")], chord)
         if ops is None:
             break
         collapse, split = ops
@@ -1166,7 +1197,9 @@ def _repair_rounds(
             break
         iterations += steps
         triangulations += extra
+        # Fixed nodes come first and are never dropped: the segments keep their numbers.
         q = triangle_quality(p, tri)
+        changeable, chord = repairable(p, tri)
         # Later rounds work on copies: every round's arrays stay as they are.
         rounds.append((p, tri, cur_kept, label))
         score = part_min(q, tri, label)
@@ -1777,10 +1810,70 @@ def _optimize(
     return p
 
 
+#: Edge (a, b), a < b, as the integer a * _KEY + b (node numbers fit in 31 bits).
+_KEY = 1 << 31
+
+
+def _keys(edges: IntArray) -> NDArray[np.int64]:
+    """Sorted keys of the undirected edges ``edges``."""
+    e = np.sort(np.asarray(edges, dtype=np.int64).reshape(-1, 2), axis=1)
+    return np.sort(e[:, 0] * _KEY + e[:, 1])
+
+
+def _chords(p: FloatArray, tri: IntArray, n_boundary: int, seg_keys: NDArray[np.int64]) -> IntArray:
+    """For each triangle of three boundary nodes (``< n_boundary``): the local index k of its
+    edge ``(t[k], t[k+1])`` to split, or -1.
+
+    The edge must be the triangle's longest (a flat cap: splitting the longest edge is the
+    classic cure of an obtuse triangle; at a sharp tip the chord is the shortest edge, and
+    splitting it would halve the tip) and not a boundary or curve segment.  The triangle
+    across it is split too, so it must have a free node.
+    """
+    out = np.full(len(tri), -1, dtype=np.intp)
+    cand = np.flatnonzero(tri.max(axis=1) < n_boundary)
+    if not len(cand):
+        return out
+    n = _KEY
+    t = tri[cand]
+    a, b = t, t[:, [1, 2, 0]]
+    length = np.hypot(*(p[a] - p[b]).transpose(2, 0, 1))
+    k = np.argmax(length, axis=1)
+    rows = np.arange(len(t))
+    ea, eb = a[rows, k], b[rows, k]
+    key = np.minimum(ea, eb).astype(np.int64) * n + np.maximum(ea, eb)
+    pos = np.minimum(np.searchsorted(seg_keys, key), max(len(seg_keys) - 1, 0))
+    ok = ~(seg_keys[pos] == key) if len(seg_keys) else np.ones(len(t), dtype=bool)
+    out[cand[ok]] = k[ok]
+    # The triangle across each chord is split with it: it must have a free node, which can
+    # move to make room.  Across a strip one triangle wide (the two triangles of a quad of
+    # boundary nodes, the chord their common diagonal) the new node has nowhere to go: next to
+    # a 5-degree tip that made the strip's trapezoids q 0.73 where they were 0.80.
+    all_keys = np.sort(tri.astype(np.int64), axis=1)
+    edge_key = np.concatenate([all_keys[:, 0] * n + all_keys[:, 1], all_keys[:, 1] * n + all_keys[:, 2],
+                               all_keys[:, 0] * n + all_keys[:, 2]])
+    owner = np.tile(np.arange(len(tri)), 3)
+    order = np.argsort(edge_key, kind="stable")
+    edge_key, owner = edge_key[order], owner[order]
+    mine = np.flatnonzero(out >= 0)
+    t = tri[mine]
+    ka, kb = t[np.arange(len(t)), out[mine]], t[np.arange(len(t)), (out[mine] + 1) % 3]
+    key = np.minimum(ka, kb).astype(np.int64) * n + np.maximum(ka, kb)
+    lo = np.searchsorted(edge_key, key)
+    for j in range(2):  # an interior edge has two owners, listed side by side
+        at = np.minimum(lo + j, len(edge_key) - 1)
+        other = np.where(edge_key[at] == key, owner[at], mine)
+        fixed_other = (other != mine) & (tri[other].max(axis=1) < n_boundary)
+        out[mine[fixed_other]] = -1
+    return out
+
+
 def _choose_repairs(
-    relax: _Relaxation, p: FloatArray, tri: IntArray, bad: IntArray
+    relax: _Relaxation, p: FloatArray, tri: IntArray, bad: IntArray, chord: IntArray
 ) -> tuple[IntArray, IntArray] | None:
-    """Edge operations for the bad triangles (worst first), no two touching the same node."""
+    """Edge operations for the bad triangles (worst first), no two touching the same node.
+
+    ``chord``: per triangle, the edge to split of a triangle with three fixed nodes
+    (:func:`_chords`)."""
     t = tri[bad]
     a = t
     b = t[:, [1, 2, 0]]
@@ -1791,14 +1884,17 @@ def _choose_repairs(
     long_ = np.argmax(ratio, axis=1)
     rows = np.arange(len(t))
     do_collapse = (1.0 - ratio[rows, short]) > (ratio[rows, long_] - 1.0)
-    k = np.where(do_collapse, short, long_)
+    # A triangle of fixed nodes only has its chord split (_chords), or nothing.
+    capped = chord[bad] >= 0
+    do_collapse &= ~capped
+    k = np.where(capped, chord[bad], np.where(do_collapse, short, long_))
     ea, eb = a[rows, k], b[rows, k]
     # Collapse (keep, drop): the dropped node must be free; a fixed keeper does not move.
     swap = do_collapse & (eb < relax.n_fixed)
     ea, eb = np.where(swap, eb, ea), np.where(swap, ea, eb)
     # An edge between two fixed nodes is left alone (splitting it on the boundary would need a
     # new boundary node).
-    movable = (eb >= relax.n_fixed) | (~do_collapse & (ea >= relax.n_fixed))
+    movable = (eb >= relax.n_fixed) | (~do_collapse & (ea >= relax.n_fixed)) | capped
     ea, eb, do_collapse = ea[movable], eb[movable], do_collapse[movable]
     if len(ea) == 0:
         return None
