@@ -451,3 +451,63 @@ def test_a_plain_function_is_not_cleaned_so_needs_no_h_min(monkeypatch) -> None:
     after = injmesh.generate(case.sdf, case.size, bbox=case.bbox, fixed_points=case.fixed_points)
     assert np.array_equal(before.points, after.points) and np.array_equal(before.triangles, after.triangles)
     assert after.stats.cleaning == {}
+
+
+@pytest.mark.parametrize("regions", [None, {"inclusion": Circle((0.4, 0.0), 0.25)}])
+def test_the_node_estimate_is_made_once_for_a_domain_cleaning_keeps(monkeypatch, regions) -> None:
+    """A circle is its own cleaned domain and the cases' h needs no correction: the cleaning's
+    node estimate is the one Step 1 (and the regions) would make, so it is made once, and the
+    mesh is the same as with every estimate made afresh."""
+    import injmesh.boundary as boundary
+    import injmesh.pipeline as pipeline
+
+    case = CASES["unit_disc"]
+    calls = []
+    real = boundary.estimate_nodes
+
+    def counted(*args, **kwargs):
+        calls.append(args)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "estimate_nodes", counted)
+    monkeypatch.setattr(boundary, "estimate_nodes", counted)
+    once = injmesh.generate(case.geometry, case.size, regions=regions)
+    assert len(calls) == 1
+
+    def fresh(self, domain, size, target):
+        return None
+
+    monkeypatch.setattr(pipeline._Estimate, "followed", fresh)
+    monkeypatch.setattr(pipeline._Estimate, "of", lambda self, domain, size: None)
+    calls.clear()
+    again = injmesh.generate(case.geometry, case.size, regions=regions)
+    assert len(calls) == (3 if regions else 2)
+    assert np.array_equal(once.points, again.points) and np.array_equal(once.triangles, again.triangles)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_kept_node_estimate_is_the_one_of_the_size_followed(seed) -> None:
+    """On random circles (their own cleaned domains), rings (which are not) and sizes, an
+    estimate that :class:`pipeline._Estimate` hands to Step 1 equals ``estimate_nodes`` of what
+    Step 1 follows, bit for bit; and it is handed over where it applies."""
+    from injmesh.boundary import corner_size, estimate_nodes
+    from injmesh.pipeline import _capped, _clean, _Estimate, _target_size
+    from injmesh.sizing import as_size_function
+
+    rng = np.random.default_rng(seed)
+    c, r = rng.uniform(-2, 2, 2), rng.uniform(0.3, 3.0)
+    apex, base, slope = rng.uniform(-2, 2, 2), rng.uniform(0.05, 0.2) * r, rng.uniform(0.02, 0.15)
+    sizes = [lambda p: base + slope * np.hypot(*(p - apex).T), lambda p: np.full(len(p), 0.3 * r), 0.1 * r]
+    kept_any = False
+    for domain in (Circle(c, r), Circle(c, r) - Circle(c + 0.3 * r * rng.uniform(-1, 1, 2), 0.2 * r)):
+        for size in sizes:
+            h = as_size_function(size)
+            dom, _, known = _clean(domain, h)
+            assert isinstance(known, _Estimate)
+            cornered = corner_size(dom, h, 0.2)
+            target, follow = _target_size(dom, cornered, 2.0, 0.2)
+            kept = known.followed(dom, cornered, target)
+            if kept is not None:
+                kept_any = True
+                assert kept == estimate_nodes(dom, _capped(follow, dom.diameter))
+    assert kept_any

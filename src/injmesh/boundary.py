@@ -141,6 +141,7 @@ def mesh_boundary(
     *,
     max_nodes: int,
     callback: Callback | None = None,
+    estimate: tuple[float, float] | None = None,
 ) -> BoundaryMesh:
     """Partition every boundary curve into segments that follow h (Step 1).
 
@@ -153,12 +154,16 @@ def mesh_boundary(
         User points; those on the boundary are kept as nodes and never move.
     max_nodes : int
         Node budget for the whole mesh, checked here before any work that scales with it.
+    callback : callable, optional
+        Called with a progress event per loop.
+    estimate : (h_min, count), optional
+        ``estimate_nodes(domain, h)`` when the caller already has it (the same numbers).
 
     Returns
     -------
     BoundaryMesh
     """
-    h_min, expected = estimate_nodes(domain, h)
+    h_min, expected = estimate_nodes(domain, h) if estimate is None else estimate
     if expected > max_nodes:
         raise NodeBudgetError(
             f"the size function implies about {expected:.3g} nodes, more than max_nodes={max_nodes}"
