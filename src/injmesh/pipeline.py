@@ -525,10 +525,12 @@ class _Estimate:
     """:func:`~injmesh.boundary.estimate_nodes` of ``size.restricted(domain)``, kept for the
     stages that ask it again: ``_clean`` needs h_min on the domain as given, regions need it on
     the cleaned domain, Step 1 needs it for the size it follows (one quadrature of h each, a
-    few milliseconds on the paper's cases).  When cleaning returns the domain itself (a circle,
-    a boundary of arcs with no short piece) and the size followed is h itself, these are one
-    question, asked once.  Compared by identity, so it is reused only for the very objects it
-    was computed for.
+    few milliseconds on the paper's cases).  When cleaning returns the domain itself (a
+    circle), or the exact boundary a CSG domain answers every one of the estimate's questions
+    with (:func:`_answers_as`: a union, difference or intersection of circles and
+    rectangles whose boundary has arcs), and the size followed is h itself, these are one
+    question, asked once.  The size is compared by identity, so the estimate is reused only
+    for the very h it was computed for.
     """
 
     domain: Domain | None = None
@@ -537,7 +539,9 @@ class _Estimate:
 
     def of(self, domain: Domain, size: SizeFunction) -> tuple[float, float] | None:
         """The estimate of ``size.restricted(domain)``, if this is it."""
-        return self.value if domain is self.domain and size is self.size else None
+        if self.value is None or self.domain is None or size is not self.size:
+            return None
+        return self.value if domain is self.domain or _answers_as(self.domain, domain) else None
 
     def followed(
         self, domain: Domain, size: SizeFunction, target: SizeFunction
@@ -590,6 +594,20 @@ def _target_size(
     # A grid too coarse for h keeps h's detail as min(grid, h restricted): the stages call h
     # itself there too, for the same reason.
     return target, unrestricted(target, h)
+
+
+def _answers_as(domain: Domain, exact: Domain) -> bool:
+    """Whether :func:`~injmesh.boundary.estimate_nodes` on ``domain`` computes exactly what it
+    computes on ``exact``: ``domain`` is a union, difference or intersection (its own ``sdf``)
+    whose exact boundary is ``exact``, a plain B-rep (not a circle or rectangle, which the
+    background grid evaluates by formula), with the same bounding box.  Such a combination
+    computes its d as ``exact.sdf``, and the estimate asks nothing else of the domain than its
+    box, d and exact boundary (its inside test samples d on a grid from that boundary)."""
+    from .geometry import BRep, Difference, Intersection, Union
+
+    return (isinstance(domain, (Union, Difference, Intersection)) and type(domain).sdf is Difference.sdf
+            and type(exact) is BRep and domain.exact_brep() is exact  # type: ignore[attr-defined]
+            and tuple(map(float, domain.bbox)) == tuple(map(float, exact.bbox)))
 
 
 # --- target_nodes -----------------------------------------------------------------------------
