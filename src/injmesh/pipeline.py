@@ -24,7 +24,7 @@ from .boundary import (
     sharp_junctions,
 )
 from .errors import ConvergenceWarning, MeshError, NodeBudgetError
-from .geometry import Domain, GeometryError, as_domain
+from .geometry import BRep, Difference, Domain, GeometryError, Intersection, Union, as_domain
 from .geometry.base import as_points
 from .geometry.regions import Constraints, CurvesLike, RegionsLike, build_constraints
 from .geometry.tracing import grid_spacing
@@ -526,11 +526,12 @@ class _Estimate:
     stages that ask it again: ``_clean`` needs h_min on the domain as given, regions need it on
     the cleaned domain, Step 1 needs it for the size it follows (one quadrature of h each, a
     few milliseconds on the paper's cases).  When cleaning returns the domain itself (a
-    circle), or the exact boundary a CSG domain answers every one of the estimate's questions
-    with (:func:`_answers_as`: a union, difference or intersection of circles and
-    rectangles whose boundary has arcs), and the size followed is h itself, these are one
-    question, asked once.  The size is compared by identity, so the estimate is reused only
-    for the very h it was computed for.
+    circle), or the exact boundary with which a CSG domain answers every one of the
+    estimate's questions (:func:`_answers_as`: a union, difference or intersection of
+    circles and rectangles whose boundary has arcs and no piece shorter than the cleaning
+    tolerance, which :meth:`BRep.cleaned <injmesh.geometry.BRep.cleaned>` returns as it is),
+    and the size followed is h itself, these are one question, asked once.  The size is
+    compared by identity, so the estimate is reused only for the very h it was computed for.
     """
 
     domain: Domain | None = None
@@ -603,8 +604,6 @@ def _answers_as(domain: Domain, exact: Domain) -> bool:
     background grid evaluates by formula), with the same bounding box.  Such a combination
     computes its d as ``exact.sdf``, and the estimate asks nothing else of the domain than its
     box, d and exact boundary (its inside test samples d on a grid from that boundary)."""
-    from .geometry import BRep, Difference, Intersection, Union
-
     return (isinstance(domain, (Union, Difference, Intersection)) and type(domain).sdf is Difference.sdf
             and type(exact) is BRep and domain.exact_brep() is exact  # type: ignore[attr-defined]
             and tuple(map(float, domain.bbox)) == tuple(map(float, exact.bbox)))
