@@ -413,3 +413,30 @@ def test_corners_of_all_loops_refined_together_as_one_by_one() -> None:
     together = refine_corners(dom, np.concatenate([b[1] for b in brackets]),
                               np.concatenate([b[2] for b in brackets]))
     assert len(together) == 4 and np.array_equal(one_by_one, together)
+
+
+def test_implicit_tracing_is_kept_per_spacing_and_handed_out_as_copies(monkeypatch) -> None:
+    """``Implicit.boundary_loops`` keeps its last tracing (corners and Step 1 ask the same
+    spacing): asked again it gives the same loops, which a caller may change freely."""
+    from injmesh.geometry.tracing import trace_loops
+
+    def ring(p):
+        r = np.hypot(p[:, 0], p[:, 1])
+        return np.maximum(r - 1.0, 0.4 - r)
+
+    dom = Implicit(ring, bbox=(-1, -1, 1, 1))
+    first = dom.boundary_loops(0.05)
+    fresh = [dom.project(loop) for loop in trace_loops(dom.sdf, dom.bbox, 0.05)]
+    assert len(first) == len(fresh) == 2
+    assert all(np.array_equal(a, b) for a, b in zip(first, fresh, strict=True))
+    first[0][:] = 0.0
+    again = dom.boundary_loops(0.05)
+    assert all(np.array_equal(a, b) for a, b in zip(again, fresh, strict=True))
+    other = dom.boundary_loops(0.1)
+    assert len(other[0]) < len(fresh[0])
+    # Both tracings are kept: asked again, neither is traced anew.
+    import injmesh.geometry.implicit as implicit
+
+    monkeypatch.setattr(implicit, "trace_loops", None)
+    assert all(np.array_equal(a, b) for a, b in zip(dom.boundary_loops(0.05), fresh, strict=True))
+    assert all(np.array_equal(a, b) for a, b in zip(dom.boundary_loops(0.1), other, strict=True))

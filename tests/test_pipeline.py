@@ -451,3 +451,91 @@ def test_a_plain_function_is_not_cleaned_so_needs_no_h_min(monkeypatch) -> None:
     after = injmesh.generate(case.sdf, case.size, bbox=case.bbox, fixed_points=case.fixed_points)
     assert np.array_equal(before.points, after.points) and np.array_equal(before.triangles, after.triangles)
     assert after.stats.cleaning == {}
+
+
+@pytest.mark.parametrize("name", ["unit_disc", "circle_with_hole", "two_circles_and_square"])
+@pytest.mark.parametrize("region", [False, True])
+def test_the_node_estimate_is_made_once_for_a_domain_cleaning_keeps(monkeypatch, name, region) -> None:
+    """A circle is its own cleaned domain, and a difference of circles (and rectangles) is
+    cleaned to the exact boundary it computes its distance with: the cleaning's node estimate
+    is the one the regions (and Step 1, where h needs no correction) would make, so it is not
+    made again; the mesh is the same as with every estimate made afresh."""
+    import injmesh.boundary as boundary
+    import injmesh.pipeline as pipeline
+    from test_regions import PAPER_INCLUSIONS
+
+    case = CASES[name]
+    centre, radius = PAPER_INCLUSIONS[name]
+    regions = {"inclusion": Circle(centre, radius)} if region else None
+    calls = []
+    real = boundary.estimate_nodes
+
+    def counted(*args, **kwargs):
+        calls.append(args)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "estimate_nodes", counted)
+    monkeypatch.setattr(boundary, "estimate_nodes", counted)
+    once = injmesh.generate(case.geometry, case.size, regions=regions)
+    made = len(calls)
+    monkeypatch.setattr(pipeline._Estimate, "of", lambda self, domain, size: None)
+    calls.clear()
+    again = injmesh.generate(case.geometry, case.size, regions=regions)
+    assert len(calls) == (3 if region else 2)
+    assert made < len(calls)
+    if name == "unit_disc":
+        assert made == 1
+    assert np.array_equal(once.points, again.points) and np.array_equal(once.triangles, again.triangles)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_kept_node_estimate_is_the_one_of_the_size_followed(seed) -> None:
+    """On random circles (their own cleaned domains), rings (which are not) and sizes, an
+    estimate that :class:`pipeline._Estimate` hands to Step 1 equals ``estimate_nodes`` of what
+    Step 1 follows, bit for bit; and it is handed over where it applies."""
+    from injmesh.boundary import corner_size, estimate_nodes
+    from injmesh.pipeline import _capped, _clean, _Estimate, _target_size
+    from injmesh.sizing import as_size_function
+
+    rng = np.random.default_rng(seed)
+    c, r = rng.uniform(-2, 2, 2), rng.uniform(0.3, 3.0)
+    apex, base, slope = rng.uniform(-2, 2, 2), rng.uniform(0.05, 0.2) * r, rng.uniform(0.02, 0.15)
+    sizes = [lambda p: base + slope * np.hypot(*(p - apex).T), lambda p: np.full(len(p), 0.3 * r), 0.1 * r]
+    kept_any = False
+    for domain in (Circle(c, r), Circle(c, r) - Circle(c + 0.3 * r * rng.uniform(-1, 1, 2), 0.2 * r)):
+        for size in sizes:
+            h = as_size_function(size)
+            dom, _, known = _clean(domain, h)
+            assert isinstance(known, _Estimate)
+            cornered = corner_size(dom, h, 0.2)
+            target, follow = _target_size(dom, cornered, 2.0, 0.2)
+            kept = known.followed(dom, cornered, target)
+            if kept is not None:
+                kept_any = True
+                assert kept == estimate_nodes(dom, _capped(follow, dom.diameter))
+    assert kept_any
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_a_combination_answers_the_node_estimate_as_its_exact_boundary(seed) -> None:
+    """Where ``pipeline._answers_as`` says a CSG domain computes the node estimate as its
+    cleaned exact boundary does, the two estimates are equal bit for bit (random unions,
+    differences and intersections of circles and rectangles, random graded sizes)."""
+    from injmesh.boundary import estimate_nodes
+    from injmesh.pipeline import _answers_as
+    from injmesh.sizing import as_size_function
+
+    rng = np.random.default_rng(100 + seed)
+    c, r = rng.uniform(-1, 1, 2), rng.uniform(0.5, 2.0)
+    disc = Circle(c, r)
+    box = Rectangle(c - rng.uniform(0.2, 0.9, 2) * r, c + rng.uniform(0.2, 0.9, 2) * r)
+    small = Circle(c + rng.uniform(-0.3, 0.3, 2) * r, rng.uniform(0.05, 0.2) * r)
+    domain = [disc - small, disc | (box - small), (disc & box) - small, (box | disc) - small][seed % 4]
+    apex, base, slope = rng.uniform(-2, 2, 2), rng.uniform(0.02, 0.1) * r, rng.uniform(0.1, 0.5)
+    h = as_size_function(lambda p: base + slope * np.hypot(*(p - apex).T))
+    exact = domain.exact_brep()
+    # An intersection's box is its operands' overlap, often larger than its exact boundary's
+    # (then it is not reused); a difference's and a union's are the boundary's own.
+    assert _answers_as(domain, exact) or seed % 4 == 2
+    if _answers_as(domain, exact):
+        assert estimate_nodes(domain, h.restricted(domain)) == estimate_nodes(exact, h.restricted(exact))

@@ -141,6 +141,7 @@ def mesh_boundary(
     *,
     max_nodes: int,
     callback: Callback | None = None,
+    estimate: tuple[float, float] | None = None,
 ) -> BoundaryMesh:
     """Partition every boundary curve into segments that follow h (Step 1).
 
@@ -153,12 +154,16 @@ def mesh_boundary(
         User points; those on the boundary are kept as nodes and never move.
     max_nodes : int
         Node budget for the whole mesh, checked here before any work that scales with it.
+    callback : callable, optional
+        Called with a progress event per loop.
+    estimate : (h_min, count), optional
+        ``estimate_nodes(domain, h)`` when the caller already has it (the same numbers).
 
     Returns
     -------
     BoundaryMesh
     """
-    h_min, expected = estimate_nodes(domain, h)
+    h_min, expected = estimate_nodes(domain, h) if estimate is None else estimate
     if expected > max_nodes:
         raise NodeBudgetError(
             f"the size function implies about {expected:.3g} nodes, more than max_nodes={max_nodes}"
@@ -937,8 +942,8 @@ def _refine(
     """
     hp = h(p)
     for _ in range(40):
-        q = np.roll(p, -1, axis=0)
-        hq = np.roll(hp, -1)
+        q = _after(p)
+        hq = _after(hp)
         length = np.hypot(*(q - p).T)
         split = length > tol.BOUNDARY_REFINE * np.minimum(hp, hq)
         if not split.any():
@@ -1009,9 +1014,21 @@ def _select(
 def _sharp_vertices(p: FloatArray) -> NDArray[np.bool_]:
     """Vertices of a closed polyline (domain on the left) whose interior angle is below
     ``SHARP_CORNER``."""
-    u, w = np.roll(p, 1, axis=0) - p, np.roll(p, -1, axis=0) - p
+    u, w = _before(p) - p, _after(p) - p
     angle = np.arctan2(w[:, 0] * u[:, 1] - w[:, 1] * u[:, 0], np.einsum("ij,ij->i", w, u)) % (2 * np.pi)
     return np.asarray(angle < np.radians(SHARP_CORNER))
+
+
+def _after(a: FloatArray) -> FloatArray:
+    """``np.roll(a, -1, axis=0)``: each row's successor round a closed loop (the loops above
+    roll short arrays in every sweep, where np.roll's general-axis handling cost more than
+    the copy)."""
+    return np.concatenate((a[1:], a[:1]))
+
+
+def _before(a: FloatArray) -> FloatArray:
+    """``np.roll(a, 1, axis=0)``: each row's predecessor round a closed loop."""
+    return np.concatenate((a[-1:], a[:-1]))
 
 
 def _balance(
@@ -1029,12 +1046,12 @@ def _balance(
         return t
     t = t.copy()
     for _ in range(tol.BALANCE_ITERATIONS):
-        nxt = np.roll(t, -1)
+        nxt = _after(t)
         nxt[-1] += total  # the segment from the last node back to the first
         mid = 0.5 * (t + nxt)  # midpoint of the segment after each node
         at = np.mod(mid, total)
         w = 1.0 / np.interp(at, arc, hv)
-        before, w_before = np.roll(mid, 1), np.roll(w, 1)
+        before, w_before = _before(mid), _before(w)
         before[0] -= total
         new = (before * w_before + mid * w) / (w_before + w)  # Eq. 3.3
         move = np.abs(new - t)[free] * w[free]

@@ -7,7 +7,7 @@ import math
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -24,7 +24,7 @@ from .boundary import (
     sharp_junctions,
 )
 from .errors import ConvergenceWarning, MeshError, NodeBudgetError
-from .geometry import Domain, GeometryError, as_domain
+from .geometry import BRep, Difference, Domain, GeometryError, Intersection, Union, as_domain
 from .geometry.base import as_points
 from .geometry.regions import Constraints, CurvesLike, RegionsLike, build_constraints
 from .geometry.tracing import grid_spacing
@@ -241,16 +241,20 @@ def generate(
             raise ValueError("h0 and seed apply to method='distmesh' only")
         if smoothing not in ("hybrid", "attractive"):
             raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
-        dom, cleaning = _clean(dom, h, min_feature)
+        dom, cleaning, known = _clean(dom, h, min_feature)
         constraints = None
         if regions is not None or curves is not None:
-            h_min, _ = estimate_nodes(dom, h.restricted(dom))
-            constraints = build_constraints(dom, regions, curves, h_min)
+            estimate = known.of(dom, h)
+            if estimate is None:
+                estimate = estimate_nodes(dom, h.restricted(dom))
+                known = _Estimate(dom, h, estimate)
+            constraints = build_constraints(dom, regions, curves, estimate[0])
             if constraints.regions and feature_layers is not None:
                 h = _region_features(dom, h, constraints, feature_layers)
-        target, follow = _target_size(dom, corner_size(dom, h, _rate(gradation)), feature_layers, gradation)
+        cornered = corner_size(dom, h, _rate(gradation))
+        target, follow = _target_size(dom, cornered, feature_layers, gradation)
         mesh = _injection(dom, follow, fixed, max_iterations, int(max_nodes), smoothing, callback,
-                          constraints)
+                          constraints, known.followed(dom, cornered, target))
         mesh = replace(mesh, size=target, stats=replace(mesh.stats, cleaning=cleaning))
     else:
         raise ValueError(f"method must be 'injection' or 'distmesh', got {method!r}")
@@ -301,10 +305,12 @@ def initial_nodes(
     """
     dom = as_domain(domain, bbox=bbox, fixed_points=fixed_points)
     h0 = as_size_function(size)
-    dom, _ = _clean(dom, h0, min_feature)
-    _, h = _target_size(dom, corner_size(dom, h0, _rate(gradation)), feature_layers, gradation)
+    dom, _, known = _clean(dom, h0, min_feature)
+    cornered = corner_size(dom, h0, _rate(gradation))
+    target, h = _target_size(dom, cornered, feature_layers, gradation)
     fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
-    bnd, seeds, injected = _place_nodes(dom, h, fixed, max_nodes, None)
+    bnd, seeds, injected = _place_nodes(dom, h, fixed, max_nodes, None,
+                                        estimate=known.followed(dom, cornered, target))
     return np.concatenate([seeds, injected])
 
 
@@ -315,12 +321,17 @@ def _place_nodes(
     max_nodes: int,
     callback: Callback | None,
     seconds: dict[str, float] | None = None,
+    estimate: tuple[float, float] | None = None,
 ) -> tuple[BoundaryMesh, FloatArray, FloatArray]:
-    """Steps 1 and 2: boundary nodes, seeds (boundary + fixed interior) and injected nodes."""
+    """Steps 1 and 2: boundary nodes, seeds (boundary + fixed interior) and injected nodes.
+
+    ``estimate``: :func:`~injmesh.boundary.estimate_nodes` of the domain and h, when the caller
+    has it (see :class:`_Estimate`).
+    """
     h = _capped(h, domain.diameter)
     t = time.perf_counter()
     # Step 1: meshing of the boundary (Eq. 3.1-3.3, Algorithms 2 and 3).
-    bnd = mesh_boundary(domain, h, fixed, max_nodes=max_nodes, callback=callback)
+    bnd = mesh_boundary(domain, h, fixed, max_nodes=max_nodes, callback=callback, estimate=estimate)
     if seconds is not None:
         seconds["boundary"] = time.perf_counter() - t
     t = time.perf_counter()
@@ -343,14 +354,15 @@ def _injection(
     smoothing: Smoothing,
     callback: Callback | None,
     constraints: Constraints | None = None,
+    estimate: tuple[float, float] | None = None,
 ) -> Mesh:
-    """Algorithm 1 of the paper."""
+    """Algorithm 1 of the paper (``estimate``: as in :func:`_place_nodes`)."""
     if constraints is not None:
         return _injection_with_curves(domain, h, fixed, max_iterations, max_nodes, smoothing, callback,
-                                      constraints)
+                                      constraints, estimate)
     seconds: dict[str, float] = {}
     # Steps 1 and 2: boundary meshing and Advancing Node Injection.
-    bnd, seeds, injected = _place_nodes(domain, h, fixed, max_nodes, callback, seconds)
+    bnd, seeds, injected = _place_nodes(domain, h, fixed, max_nodes, callback, seconds, estimate)
     points = np.concatenate([seeds, injected])
     t = time.perf_counter()
 
@@ -445,10 +457,11 @@ def _capped(h: Callable[[FloatArray], FloatArray], cap: float) -> Callable[[Floa
 
 def _clean(
     domain: Domain, h: SizeFunction, min_feature: float | None = None
-) -> tuple[Domain, dict[str, int]]:
+) -> tuple[Domain, dict[str, int], _Estimate]:
     """The domain cleaned at the scale of h: vertices closer than ``CLEAN * h_min`` merged,
     zero-length edges and spikes dropped, parts beyond pinches narrower than ``min_feature``
-    dropped (``Domain.cleaned``), and what changed.
+    dropped (``Domain.cleaned``), what changed, and the node estimate of h on the domain
+    when it was made (:class:`_Estimate`: a later stage may reuse it).
 
     GIS outlines carry vertices 1e-7 apart; meshed as given they make a duplicate node and a
     triangle of zero area.  A detailed outline also comes back within a fraction of h of itself
@@ -477,12 +490,15 @@ def _clean(
     if type(domain).cleaned is Domain.cleaned:
         # The base class cleans nothing (a plain signed distance): no tolerance is needed, so
         # h_min's estimate, a quadrature of h over the domain, is left out.
-        return domain, {}
+        return domain, {}, _Estimate()
+    known = _Estimate()
     # A constant h (capped at the diameter, as the stages cap it) is its own minimum.
     if h.constant is not None:
         h_min = min(h.constant, domain.diameter)
     else:
-        h_min = estimate_nodes(domain, h.restricted(domain))[0]
+        known = _Estimate(domain, h, estimate_nodes(domain, h.restricted(domain)))
+        assert known.value is not None
+        h_min = known.value[0]
     if min_feature is None:
         width, max_area = CLEAN * h_min, PINCH_AREA * h_min * h_min
     else:
@@ -501,7 +517,45 @@ def _clean(
                    f"{width:.3g} were dropped (lobes removed, pockets filled) at {shown}{more}")
         logger.info(message)
         warnings.warn(message, UserWarning, stacklevel=3)
-    return cleaned, changes
+    return cleaned, changes, known
+
+
+@dataclass(frozen=True)
+class _Estimate:
+    """:func:`~injmesh.boundary.estimate_nodes` of ``size.restricted(domain)``, kept for the
+    stages that ask it again: ``_clean`` needs h_min on the domain as given, regions need it on
+    the cleaned domain, Step 1 needs it for the size it follows (one quadrature of h each, a
+    few milliseconds on the paper's cases).  When cleaning returns the domain itself (a
+    circle), or the exact boundary with which a CSG domain answers every one of the
+    estimate's questions (:func:`_answers_as`: a union, difference or intersection of
+    circles and rectangles whose boundary has arcs and no piece shorter than the cleaning
+    tolerance, which :meth:`BRep.cleaned <injmesh.geometry.BRep.cleaned>` returns as it is),
+    and the size followed is h itself, these are one question, asked once.  The size is
+    compared by identity, so the estimate is reused only for the very h it was computed for.
+    """
+
+    domain: Domain | None = None
+    size: SizeFunction | None = None
+    value: tuple[float, float] | None = None
+
+    def of(self, domain: Domain, size: SizeFunction) -> tuple[float, float] | None:
+        """The estimate of ``size.restricted(domain)``, if this is it."""
+        if self.value is None or self.domain is None or size is not self.size:
+            return None
+        return self.value if domain is self.domain or _answers_as(self.domain, domain) else None
+
+    def followed(
+        self, domain: Domain, size: SizeFunction, target: SizeFunction
+    ) -> tuple[float, float] | None:
+        """The estimate of the size the stages follow, when :func:`_target_size` returned
+        ``size`` itself for ``target`` (its test, repeated): the stages then call ``size``
+        capped at the domain's diameter, which at the estimate's samples (all inside the
+        domain, where the restriction asks ``size`` itself) gives the values of
+        ``size.restricted(domain)``, clamped to that same diameter, bit for bit.
+        """
+        if target.domain is not None and target.function is size.function:
+            return self.of(domain, size)
+        return None
 
 
 #: Places listed in a cleaning warning.
@@ -541,6 +595,18 @@ def _target_size(
     # A grid too coarse for h keeps h's detail as min(grid, h restricted): the stages call h
     # itself there too, for the same reason.
     return target, unrestricted(target, h)
+
+
+def _answers_as(domain: Domain, exact: Domain) -> bool:
+    """Whether :func:`~injmesh.boundary.estimate_nodes` on ``domain`` computes exactly what it
+    computes on ``exact``: ``domain`` is a union, difference or intersection (its own ``sdf``)
+    whose exact boundary is ``exact``, a plain B-rep (not a circle or rectangle, which the
+    background grid evaluates by formula), with the same bounding box.  Such a combination
+    computes its d as ``exact.sdf``, and the estimate asks nothing else of the domain than its
+    box, d and exact boundary (its inside test samples d on a grid from that boundary)."""
+    return (isinstance(domain, (Union, Difference, Intersection)) and type(domain).sdf is Difference.sdf
+            and type(exact) is BRep and domain.exact_brep() is exact  # type: ignore[attr-defined]
+            and tuple(map(float, domain.bbox)) == tuple(map(float, exact.bbox)))
 
 
 # --- target_nodes -----------------------------------------------------------------------------
@@ -753,9 +819,11 @@ def _injection_with_curves(
     smoothing: Smoothing,
     callback: Callback | None,
     cons: Constraints,
+    estimate: tuple[float, float] | None = None,
 ) -> Mesh:
     """Algorithm 1 with interior curves: Step 1 meshes them too, Step 2 injects from both of
-    their sides, Step 3 slides their nodes along them and recovers their segments as edges.
+    their sides, Step 3 slides their nodes along them and recovers their segments as edges
+    (``estimate``: as in :func:`_place_nodes`).
 
     Nodes are ordered boundary, curve nodes (junctions on the boundary are boundary nodes),
     user fixed interior points, injected nodes; the first ``n_fixed`` never move except by
@@ -770,7 +838,7 @@ def _injection_with_curves(
     # the tip, as a sharp corner of the domain does.
     tip_walls, pieces = sharp_junctions(domain, hc, cons.pieces, cons.boundary_junctions)
     fixed_b = np.concatenate([fixed.reshape(-1, 2), cons.boundary_junctions, tip_walls])
-    bnd = mesh_boundary(domain, hc, fixed_b, max_nodes=max_nodes, callback=callback)
+    bnd = mesh_boundary(domain, hc, fixed_b, max_nodes=max_nodes, callback=callback, estimate=estimate)
     cm = mesh_curves(pieces, hc, diam)
     nb = len(bnd.points)
     ids = np.empty(len(cm.points), dtype=np.intp)

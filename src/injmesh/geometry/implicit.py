@@ -10,6 +10,9 @@ from numpy.typing import ArrayLike
 from .base import BBox, Domain, FloatArray, GeometryError, as_points
 from .tracing import corner_brackets, grid_spacing, refine_corners, trace_loops
 
+#: Tracings an :class:`Implicit` keeps (by spacing; the oldest is dropped first).
+TRACINGS_KEPT = 4
+
 
 class Implicit(Domain):
     """A domain given only by a signed distance function ``d(p)``.
@@ -54,6 +57,7 @@ class Implicit(Domain):
             np.empty((0, 2)) if fixed_points is None else as_points(fixed_points).copy()
         )
         self._corners: FloatArray | None = None
+        self._traced: dict[float, list[FloatArray]] = {}
         self._probe()
 
     def __repr__(self) -> str:
@@ -112,8 +116,20 @@ class Implicit(Domain):
         return self._corners.copy()
 
     def boundary_loops(self, spacing: float) -> list[FloatArray]:
-        loops = trace_loops(self.sdf, self._bbox, spacing)
-        return [self.project(loop) for loop in loops]
+        # corners() traces at grid_spacing(bbox, inf) and Step 1 at grid_spacing(bbox, h_min):
+        # the same spacing whenever h_min / TRACE_PER_H is above diameter / TRACE_MIN_CELLS (all
+        # six paper cases), where the second tracing (grid, marching squares, projection:
+        # ~4 ms of a 100-node mesh) would repeat the first.  d is a function of the point
+        # alone, so the last few tracings (the size probe asks another spacing in between) are
+        # kept by spacing and handed out as copies: the same loops.
+        loops = self._traced.get(spacing)
+        if loops is None:
+            loops = [self.project(loop) for loop in trace_loops(self.sdf, self._bbox, spacing)]
+            # A new dict, assigned at once: threads meshing the same domain see one or the other.
+            kept = dict(list(self._traced.items())[1 - TRACINGS_KEPT:])
+            kept[spacing] = loops
+            self._traced = kept
+        return [loop.copy() for loop in loops]
 
 
 def _distance_to(p: FloatArray, q: FloatArray) -> FloatArray:
