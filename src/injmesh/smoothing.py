@@ -1814,10 +1814,15 @@ def _optimize(
 _KEY = 1 << 31
 
 
+def _edge_keys(a: IntArray, b: IntArray) -> NDArray[np.int64]:
+    """The undirected edges ``a[i]-b[i]`` as integers."""
+    return np.minimum(a, b).astype(np.int64) * _KEY + np.maximum(a, b)
+
+
 def _keys(edges: IntArray) -> NDArray[np.int64]:
-    """Sorted keys of the undirected edges ``edges``."""
-    e = np.sort(np.asarray(edges, dtype=np.int64).reshape(-1, 2), axis=1)
-    return np.sort(e[:, 0] * _KEY + e[:, 1])
+    """Sorted keys of the undirected edges ``edges (k, 2)``."""
+    e = np.asarray(edges).reshape(-1, 2)
+    return np.sort(_edge_keys(e[:, 0], e[:, 1]))
 
 
 def _chords(p: FloatArray, tri: IntArray, n_boundary: int, seg_keys: NDArray[np.int64]) -> IntArray:
@@ -1833,37 +1838,22 @@ def _chords(p: FloatArray, tri: IntArray, n_boundary: int, seg_keys: NDArray[np.
     cand = np.flatnonzero(tri.max(axis=1) < n_boundary)
     if not len(cand):
         return out
-    n = _KEY
     t = tri[cand]
-    a, b = t, t[:, [1, 2, 0]]
-    length = np.hypot(*(p[a] - p[b]).transpose(2, 0, 1))
-    k = np.argmax(length, axis=1)
+    b = t[:, [1, 2, 0]]
+    k = np.argmax(np.hypot(*(p[t] - p[b]).transpose(2, 0, 1)), axis=1)
     rows = np.arange(len(t))
-    ea, eb = a[rows, k], b[rows, k]
-    key = np.minimum(ea, eb).astype(np.int64) * n + np.maximum(ea, eb)
-    pos = np.minimum(np.searchsorted(seg_keys, key), max(len(seg_keys) - 1, 0))
-    ok = ~(seg_keys[pos] == key) if len(seg_keys) else np.ones(len(t), dtype=bool)
-    out[cand[ok]] = k[ok]
+    chord = ~np.isin(_edge_keys(t[rows, k], b[rows, k]), seg_keys)
+    cand, k = cand[chord], k[chord]
+    if not len(cand):
+        return out
     # The triangle across each chord is split with it: it must have a free node, which can
     # move to make room.  Across a strip one triangle wide (the two triangles of a quad of
     # boundary nodes, the chord their common diagonal) the new node has nowhere to go: next to
-    # a 5-degree tip that made the strip's trapezoids q 0.73 where they were 0.80.
-    all_keys = np.sort(tri.astype(np.int64), axis=1)
-    edge_key = np.concatenate([all_keys[:, 0] * n + all_keys[:, 1], all_keys[:, 1] * n + all_keys[:, 2],
-                               all_keys[:, 0] * n + all_keys[:, 2]])
-    owner = np.tile(np.arange(len(tri)), 3)
-    order = np.argsort(edge_key, kind="stable")
-    edge_key, owner = edge_key[order], owner[order]
-    mine = np.flatnonzero(out >= 0)
-    t = tri[mine]
-    ka, kb = t[np.arange(len(t)), out[mine]], t[np.arange(len(t)), (out[mine] + 1) % 3]
-    key = np.minimum(ka, kb).astype(np.int64) * n + np.maximum(ka, kb)
-    lo = np.searchsorted(edge_key, key)
-    for j in range(2):  # an interior edge has two owners, listed side by side
-        at = np.minimum(lo + j, len(edge_key) - 1)
-        other = np.where(edge_key[at] == key, owner[at], mine)
-        fixed_other = (other != mine) & (tri[other].max(axis=1) < n_boundary)
-        out[mine[fixed_other]] = -1
+    # a 5-degree tip that made the strip's trapezoids q 0.73 where they were 0.80.  Edge k is
+    # opposite corner k + 2 in the neighbour table.
+    across = _neighbours32(np.ascontiguousarray(tri, dtype=np.int32), len(p))[cand, (k + 2) % 3]
+    walled_in = (across >= 0) & (tri[across].max(axis=1) < n_boundary)
+    out[cand[~walled_in]] = k[~walled_in]
     return out
 
 
@@ -1893,7 +1883,7 @@ def _choose_repairs(
     swap = do_collapse & (eb < relax.n_fixed)
     ea, eb = np.where(swap, eb, ea), np.where(swap, ea, eb)
     # An edge between two fixed nodes is left alone (splitting it on the boundary would need a
-    # new boundary node).
+    # new boundary node), but for a chord of a cap.
     movable = (eb >= relax.n_fixed) | (~do_collapse & (ea >= relax.n_fixed)) | capped
     ea, eb, do_collapse = ea[movable], eb[movable], do_collapse[movable]
     if len(ea) == 0:
