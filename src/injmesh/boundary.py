@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from . import _tolerances as tol
 from .errors import NodeBudgetError
 from .geometry import BRep, Domain, GeometryError
+from .geometry.base import ring_next, ring_prev
 from .geometry.regions import Piece
 from .geometry.tracing import grid_spacing
 from .progress import Callback, report
@@ -942,8 +943,8 @@ def _refine(
     """
     hp = h(p)
     for _ in range(40):
-        q = _after(p)
-        hq = _after(hp)
+        q = ring_next(p)
+        hq = ring_next(hp)
         length = np.hypot(*(q - p).T)
         split = length > tol.BOUNDARY_REFINE * np.minimum(hp, hq)
         if not split.any():
@@ -1014,21 +1015,9 @@ def _select(
 def _sharp_vertices(p: FloatArray) -> NDArray[np.bool_]:
     """Vertices of a closed polyline (domain on the left) whose interior angle is below
     ``SHARP_CORNER``."""
-    u, w = _before(p) - p, _after(p) - p
+    u, w = ring_prev(p) - p, ring_next(p) - p
     angle = np.arctan2(w[:, 0] * u[:, 1] - w[:, 1] * u[:, 0], np.einsum("ij,ij->i", w, u)) % (2 * np.pi)
     return np.asarray(angle < np.radians(SHARP_CORNER))
-
-
-def _after(a: FloatArray) -> FloatArray:
-    """``np.roll(a, -1, axis=0)``: each row's successor round a closed loop (the loops above
-    roll short arrays in every sweep, where np.roll's general-axis handling cost more than
-    the copy)."""
-    return np.concatenate((a[1:], a[:1]))
-
-
-def _before(a: FloatArray) -> FloatArray:
-    """``np.roll(a, 1, axis=0)``: each row's predecessor round a closed loop."""
-    return np.concatenate((a[-1:], a[:-1]))
 
 
 def _balance(
@@ -1046,12 +1035,12 @@ def _balance(
         return t
     t = t.copy()
     for _ in range(tol.BALANCE_ITERATIONS):
-        nxt = _after(t)
+        nxt = ring_next(t)
         nxt[-1] += total  # the segment from the last node back to the first
         mid = 0.5 * (t + nxt)  # midpoint of the segment after each node
         at = np.mod(mid, total)
         w = 1.0 / np.interp(at, arc, hv)
-        before, w_before = _before(mid), _before(w)
+        before, w_before = ring_prev(mid), ring_prev(w)
         before[0] -= total
         new = (before * w_before + mid * w) / (w_before + w)  # Eq. 3.3
         move = np.abs(new - t)[free] * w[free]

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _tolerances as tol
-from .base import BBox, FloatArray, GeometryError, as_points
+from .base import BBox, FloatArray, GeometryError, as_points, ring_next, ring_prev
 from .brep import BRep
 
 
@@ -159,7 +158,7 @@ class Polygon(BRep):
         self._names = names
         self._report = {"reoriented_rings": reoriented, "zero_length_edges": dropped}
         p0 = np.concatenate(local)
-        p1 = np.concatenate([_succ(r) for r in local])
+        p1 = np.concatenate([ring_next(r) for r in local])
         loop_start = np.r_[0, np.cumsum([len(r) for r in local])]
         self._set_local(p0, p1, np.zeros_like(p0), np.zeros(len(p0)), loop_start, origin)
 
@@ -349,24 +348,12 @@ class Rectangle(Polygon):
         return out
 
 
-def _succ(a: NDArray[Any]) -> NDArray[Any]:
-    """``np.roll(a, -1, axis=0)``: each vertex's successor round a ring (ring helpers run a
-    few dozen times per Polygon built or cleaned, where np.roll's general-axis handling cost
-    about a third of the time)."""
-    return np.concatenate((a[1:], a[:1]))
-
-
-def _pred(a: NDArray[Any]) -> NDArray[Any]:
-    """``np.roll(a, 1, axis=0)``: each vertex's predecessor round a ring."""
-    return np.concatenate((a[-1:], a[:-1]))
-
-
 def _shoelace(v: FloatArray) -> float:
     v = v - v[0]  # relative to a vertex of its own: no cancellation far from the origin
     x, y = v[:, 0], v[:, 1]
     # Sums, not np.dot: BLAS splits a long dot product among its threads (the result then
     # depends on their number) and waits for them (milliseconds on a busy machine).
-    return 0.5 * float(np.sum(x * _succ(y)) - np.sum(y * _succ(x)))
+    return 0.5 * float(np.sum(x * ring_next(y)) - np.sum(y * ring_next(x)))
 
 
 def _read_ring(vertices: ArrayLike, name: str) -> tuple[FloatArray, int]:
@@ -377,7 +364,7 @@ def _read_ring(vertices: ArrayLike, name: str) -> tuple[FloatArray, int]:
         raise GeometryError(f"Polygon {name}: vertices must have shape (k, 2), got {v.shape}")
     if not np.all(np.isfinite(v)):
         raise GeometryError(f"Polygon {name}: vertices must be finite")
-    keep = np.any(v != _succ(v), axis=1) if len(v) > 1 else np.ones(len(v), dtype=bool)
+    keep = np.any(v != ring_next(v), axis=1) if len(v) > 1 else np.ones(len(v), dtype=bool)
     if len(v) and not keep.any():
         keep[0] = True
     out = v[keep]
@@ -388,7 +375,7 @@ def _read_ring(vertices: ArrayLike, name: str) -> tuple[FloatArray, int]:
 
 
 def _perimeter(v: FloatArray) -> float:
-    return float(np.sum(np.hypot(*(_succ(v) - v).T)))
+    return float(np.sum(np.hypot(*(ring_next(v) - v).T)))
 
 
 def _clean_ring(ring: FloatArray, tolerance: float) -> tuple[FloatArray, int, int]:
@@ -406,7 +393,7 @@ def _clean_ring(ring: FloatArray, tolerance: float) -> tuple[FloatArray, int, in
         if len(v) < 3:
             break
         # Spikes: the nearer neighbour lies within tolerance of the other edge, on the same side.
-        u, w = _pred(v) - v, _succ(v) - v
+        u, w = ring_prev(v) - v, ring_next(v) - v
         lu, lw = np.hypot(*u.T), np.hypot(*w.T)
         near = np.where((lu <= lw)[:, None], u, w)
         far = np.where((lu <= lw)[:, None], w, u)
@@ -415,7 +402,7 @@ def _clean_ring(ring: FloatArray, tolerance: float) -> tuple[FloatArray, int, in
         gap = np.hypot(*(near - t[:, None] * far).T)
         spike = (np.einsum("ij,ij->i", u, w) > 0) & (gap < tolerance)
         # Remove no two neighbours at once: the second may not be a spike afterwards.
-        spike &= ~_pred(spike) | (np.arange(len(v)) == 0)
+        spike &= ~ring_prev(spike) | (np.arange(len(v)) == 0)
         if spike[0] and spike[-1]:
             spike[-1] = False
         if not spike.any():
@@ -431,7 +418,7 @@ def _ring_edges(
     local: list[FloatArray],
 ) -> tuple[FloatArray, FloatArray, NDArray[np.int64], NDArray[np.int64]]:
     a = np.ascontiguousarray(np.concatenate(local))
-    b = np.ascontiguousarray(np.concatenate([_succ(r) for r in local]))
+    b = np.ascontiguousarray(np.concatenate([ring_next(r) for r in local]))
     start = np.r_[0, np.cumsum([len(r) for r in local])]
     ring = np.repeat(np.arange(len(local)), np.diff(start)).astype(np.int64)
     idx = np.arange(len(a))
