@@ -12,8 +12,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from injmesh import Rectangle
-from injmesh.kernels.smooth import adjacency, advance, bar_forces, mean_bar_size, rings
+from injmesh import Circle, Implicit, Polygon, Rectangle, generate
+from injmesh.kernels.smooth import adjacency, advance, bar_forces, boundary_query, mean_bar_size, rings
 from injmesh.quality import unique_edges
 from injmesh.smoothing import ATTRACTION, DT, smooth
 from injmesh.triangulation import delaunay
@@ -763,3 +763,66 @@ def test_square_corners_have_no_flat_cap(h: float) -> None:
     caps = on[t].all(axis=1) & (q < REPAIR_Q)
     assert not caps.any()
     assert q.min() > 0.85
+
+
+_KINDS = {
+    "circle": lambda: Circle((0.3, -0.2), 0.7),
+    "rectangle": lambda: Rectangle((-1, -0.5), (2, 1)),
+    "polygon": lambda: Polygon([(0, 0), (2, 0), (2, 1), (1, 0.4), (0, 1)]),
+    "csg": lambda: Rectangle((-1, -1), (1, 1)) - Circle((0.2, 0.1), 0.4),
+}
+
+
+@pytest.mark.parametrize("name", list(_KINDS))
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_compiled_boundary_answers_as_the_methods(name: str, seed: int) -> None:
+    """boundary_query gives the numbers of the domain's sdf and project, bit for bit (the
+    compiled relaxation must make the meshes the Python loop made)."""
+    dom = _KINDS[name]()
+    kb = dom.kernel_boundary()
+    assert kb is not None
+    rng = np.random.default_rng(seed)
+    x0, y0, x1, y1 = dom.bbox
+    q = rng.uniform([x0 - 0.3, y0 - 0.3], [x1 + 0.3, y1 + 0.3], (40, 2))
+    q[:5] = dom.project(q[:5])  # on the boundary: the sign and foot of the tie cases
+    foot = np.empty_like(q)
+    d = boundary_query(q, *kb, foot)
+    assert np.array_equal(d, dom.sdf(q))
+    assert np.array_equal(foot, dom.project(q))
+
+
+def test_a_domain_with_its_own_methods_has_no_compiled_boundary() -> None:
+    class Wobbly(Circle):
+        def sdf(self, p):  # type: ignore[no-untyped-def]
+            return super().sdf(p) * 1.0
+
+    assert Wobbly((0, 0), 1).kernel_boundary() is None
+    assert Implicit(lambda p: np.hypot(p[:, 0], p[:, 1]) - 1, (-1, -1, 1, 1)).kernel_boundary() is None
+
+
+@pytest.mark.parametrize("name", list(_KINDS))
+def test_compiled_steps_make_the_mesh_of_the_python_loop(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The relaxation's compiled runs (kernels.smooth.run_steps) and the loop over kernels and
+    the domain's methods give the same mesh, bit for bit, graded h and repair rounds included."""
+    import injmesh.smoothing as S
+
+    dom = _KINDS[name]()
+    x0, y0 = dom.bbox[:2]
+
+    def h(p: np.ndarray) -> np.ndarray:
+        return 0.08 + 0.1 * np.hypot(p[:, 0] - x0, p[:, 1] - y0)
+
+    compiled = generate(dom, h)
+    init = S._Relaxation.__init__
+
+    def python_loop(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+        init(self, *args, **kwargs)
+        assert self._kernel_boundary is not None or self._patch or kwargs.get("project") is not None
+        self._kernel_boundary = None
+
+    monkeypatch.setattr(S._Relaxation, "__init__", python_loop)
+    loop = generate(dom, h)
+    assert compiled.stats.iterations == loop.stats.iterations
+    assert np.array_equal(compiled.points, loop.points)
+    assert np.array_equal(compiled.triangles, loop.triangles)

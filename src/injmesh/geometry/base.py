@@ -52,6 +52,10 @@ def ring_prev(a: NDArray[Any]) -> NDArray[Any]:
     return np.concatenate((a[-1:], a[:-1]))
 
 
+#: :meth:`Domain.kernel_boundary`: ``(kind, shape, origin, g)``.
+KernelBoundary = tuple[int, FloatArray, FloatArray, tuple[Any, ...]]
+
+
 class Domain(ABC):
     """A 2-D region given by its signed distance function.
 
@@ -92,6 +96,18 @@ class Domain(ABC):
     def corners(self) -> FloatArray:
         """Sharp corners of the boundary, ``(k, 2)``; they stay fixed while meshing."""
         return np.empty((0, 2))
+
+    def kernel_boundary(self) -> KernelBoundary | None:
+        """The boundary in the form compiled kernels query themselves
+        (:func:`injmesh.kernels.smooth.boundary_query`), giving the numbers :meth:`sdf` and
+        :meth:`project` give; None (the default) when those are only known through the
+        methods.
+
+        ``(kind, shape, origin, g)``: a B-rep (kind 0, ``origin`` and ``g`` its
+        :meth:`~injmesh.geometry.brep.BRep.kernel_data`), a circle (1, ``shape = (cx, cy,
+        r)``) or an axis-aligned rectangle (2, ``shape = (x0, y0, x1, y1)``).
+        """
+        return None
 
     def gradient(self, p: FloatArray) -> FloatArray:
         """Gradient of d by central differences, ``(n, 2)``.

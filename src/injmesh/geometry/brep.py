@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import _tolerances as tol
-from .base import BBox, Domain, FloatArray, as_points
+from .base import BBox, Domain, FloatArray, KernelBoundary, as_points
 
 IntArray = NDArray[np.intp]
 
@@ -181,6 +181,14 @@ class BRep(Domain):
         g = (self._p0, self._p1, self._c, self._r, self._a0, self._sw, self._prv, self._nxt,
              node_lo, node_hi, child, start, count, order, *leaf, *search)
         return self._origin, g
+
+    def kernel_boundary(self) -> KernelBoundary | None:
+        """Kind 0 (see :meth:`Domain.kernel_boundary`) while :meth:`sdf` and :meth:`project`
+        are this class's, which ask the same kernel."""
+        if type(self).sdf is not BRep.sdf or type(self).project is not BRep.project:
+            return None
+        origin, g = self.kernel_data()
+        return 0, np.zeros(0), origin, g
 
     def _query(self, p: FloatArray) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
         """Signed distance, foot point (global) and piece of each point."""

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import _tolerances as tol
-from .base import BBox, Domain, FloatArray, as_points
+from .base import BBox, Domain, FloatArray, KernelBoundary, as_points
 from .brep import BRep
 
 IntArray = NDArray[np.intp]
@@ -75,6 +75,15 @@ class _Combination(Domain):
 
     def _minmax(self, p: FloatArray) -> FloatArray:
         raise NotImplementedError
+
+    def kernel_boundary(self) -> KernelBoundary | None:
+        """That of the exact result when the operands are B-reps (:meth:`sdf` and
+        :meth:`project` are its own then)."""
+        exact = self.exact_brep()
+        own = type(self).sdf is _Combination.sdf and type(self).project is _Combination.project
+        if exact is None or not own:
+            return None
+        return exact.kernel_boundary()
 
     def gradient(self, p: FloatArray) -> FloatArray:
         exact = self.exact_brep()

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _tolerances as tol
-from .base import BBox, FloatArray, GeometryError, as_points, ring_next, ring_prev
+from .base import BBox, FloatArray, GeometryError, KernelBoundary, as_points, ring_next, ring_prev
 from .brep import BRep
 
 
@@ -53,6 +53,14 @@ class Circle(BRep):
         v = np.where(n[:, None] > 0, v, [1.0, 0.0])
         n = np.where(n > 0, n, 1.0)
         return self.center + self.r * v / n[:, None]
+
+    def kernel_boundary(self) -> KernelBoundary | None:
+        """Kind 1, the closed formulas of :meth:`sdf` and :meth:`project` (see
+        :meth:`~injmesh.geometry.base.Domain.kernel_boundary`)."""
+        if type(self).sdf is not Circle.sdf or type(self).project is not Circle.project:
+            return None
+        origin, g = self.kernel_data()
+        return 1, np.array([self.center[0], self.center[1], self.r]), origin, g
 
     def boundary_loops(self, spacing: float) -> list[FloatArray]:
         n = max(16, math.ceil(2 * math.pi * self.r / spacing))
@@ -329,6 +337,14 @@ class Rectangle(Polygon):
         q = np.abs(p - c) - 0.5 * (self.hi - self.lo)
         outside = np.hypot(*np.maximum(q, 0.0).T)
         return outside + np.minimum(q.max(axis=1), 0.0)
+
+    def kernel_boundary(self) -> KernelBoundary | None:
+        """Kind 2, the closed formulas of :meth:`sdf` and :meth:`project` (see
+        :meth:`~injmesh.geometry.base.Domain.kernel_boundary`)."""
+        if type(self).sdf is not Rectangle.sdf or type(self).project is not Rectangle.project:
+            return None
+        origin, g = self.kernel_data()
+        return 2, np.concatenate([self.lo, self.hi]), origin, g
 
     def project(self, p: FloatArray) -> FloatArray:
         p = as_points(p)

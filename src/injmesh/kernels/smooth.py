@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit
 
 from . import threads
+from .brep import nearest as _brep_nearest
 
 
 @njit(cache=True, inline="always")
@@ -939,3 +940,149 @@ def fold_moves(nodes, moved, p, anchor, hbar, tol, worst, at, drift, count):  # 
             i, moved[r], math.hypot(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) / hbar[i],
             tol, worst, at, drift, count)
     return worst, at, drift, count
+
+
+# --- many Euler steps in one call (smoothing._Relaxation.run on a compiled boundary) ---------
+# A step of a small mesh or of a repair patch is a few microseconds of kernels, and the Python
+# between them (the dispatches, the projection of the sliding nodes through the domain's
+# methods, the inside test of the near nodes) cost ten times that: 52-199 steps per paper case
+# at 80-130 us each.  When the domain's boundary is one the kernels can query themselves (a
+# B-rep, or a circle or rectangle by the closed formulas of their methods), the whole run of
+# steps up to the next connectivity update is one call.  Every number is the one the Python
+# loop computes: the same kernels in the same order, and the boundary queries the methods make
+# (:func:`injmesh.kernels.brep.nearest` on the same points in the same order, or the same
+# closed formulas with the libm hypot that np.hypot calls).
+
+#: ``run_steps``' outcomes: the cap reached before a step, the convergence test met, the slow
+#: tail reached, a node drifted past the re-triangulation threshold, the steps used up.
+RUN_CAP, RUN_CONVERGED, RUN_TAIL, RUN_RETRIANGULATE, RUN_DONE = 0, 1, 2, 3, 4
+#: ``kind`` of a compiled boundary: a B-rep through its hierarchy, a circle, a rectangle.
+BOUNDARY_BREP, BOUNDARY_CIRCLE, BOUNDARY_RECTANGLE = 0, 1, 2
+
+
+@njit(cache=True)
+def boundary_query(q, kind, shape, origin, g, foot):  # type: ignore[no-untyped-def]
+    """Signed distance of each point of ``q (m, 2)`` to the boundary (negative inside), and,
+    when ``foot`` has m rows, the nearest boundary point into it, as the domain's ``sdf`` and
+    ``project`` give them.
+
+    ``kind``/``shape``: a B-rep (``shape`` unused; ``origin`` and ``g`` its
+    :meth:`~injmesh.geometry.brep.BRep.kernel_data`), a circle (``shape = (cx, cy, r)``) or an
+    axis-aligned rectangle (``shape = (x0, y0, x1, y1)``).
+    """
+    m = q.shape[0]
+    d = np.empty(m)
+    want = foot.shape[0] == m
+    if kind == BOUNDARY_BREP:
+        local = np.empty((m, 2))
+        for r in range(m):
+            local[r, 0] = q[r, 0] - origin[0]
+            local[r, 1] = q[r, 1] - origin[1]
+        dist, f, _ = _brep_nearest(local, g)
+        for r in range(m):
+            d[r] = dist[r]
+            if want:
+                foot[r, 0] = f[r, 0] + origin[0]
+                foot[r, 1] = f[r, 1] + origin[1]
+    elif kind == BOUNDARY_CIRCLE:
+        cx, cy, rad = shape[0], shape[1], shape[2]
+        for r in range(m):
+            vx, vy = q[r, 0] - cx, q[r, 1] - cy
+            n = math.hypot(vx, vy)
+            d[r] = n - rad
+            if want:
+                if not n > 0.0:
+                    vx, vy, n = 1.0, 0.0, 1.0
+                foot[r, 0] = cx + rad * vx / n
+                foot[r, 1] = cy + rad * vy / n
+    else:
+        x0, y0, x1, y1 = shape[0], shape[1], shape[2], shape[3]
+        mx, my = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+        wx, wy = 0.5 * (x1 - x0), 0.5 * (y1 - y0)
+        for r in range(m):
+            x, y = q[r, 0], q[r, 1]
+            ax, ay = abs(x - mx) - wx, abs(y - my) - wy
+            d[r] = math.hypot(max(ax, 0.0), max(ay, 0.0)) + min(max(ax, ay), 0.0)
+            if want:
+                fx, fy = min(max(x, x0), x1), min(max(y, y0), y1)
+                if x > x0 and x < x1 and y > y0 and y < y1:
+                    # The nearest side, the first of (left, right, bottom, top) on ties.
+                    k, best = 0, x - x0
+                    if x1 - x < best:
+                        k, best = 1, x1 - x
+                    if y - y0 < best:
+                        k, best = 2, y - y0
+                    if y1 - y < best:
+                        k = 3
+                    if k == 0:
+                        fx = x0
+                    elif k == 1:
+                        fx = x1
+                    elif k == 2:
+                        fy = y0
+                    else:
+                        fy = y1
+                foot[r, 0], foot[r, 1] = fx, fy
+    return d
+
+
+@njit(cache=True)
+def run_steps(p, moving, free, indptr, adj, eid, ld, attraction, total, damp, hbar, dt, step_cap,  # type: ignore[no-untyped-def]
+              deep, anchor, d0, reach, cand, near, ok, tol, slide, ld_prev, ld_next, kind, shape,
+              origin, g, iterations, weight, cap, steps, tail, tail_after, retriangulate):
+    """Up to ``steps`` Euler steps of ``smoothing._Relaxation.run`` (free nodes by
+    :func:`step_free` and :func:`take_near`, sliding nodes by :func:`slide_targets`, the
+    projection and :func:`slide_accept`), the domain asked through :func:`boundary_query`.
+
+    Stops before a step that would take ``iterations`` past ``cap`` (each step adds
+    ``weight``), or after a step whose largest move is below ``tol`` (converged), whose moving
+    nodes are at most ``tail`` once ``iterations >= tail_after``, or whose largest drift is
+    above ``retriangulate``.  Returns ``(outcome, steps taken, iterations, largest move of the
+    last step over hbar, its node, nodes that moved more than tol in it)``.
+    """
+    n_sl = slide.shape[0]
+    target = np.empty((n_sl, 2))
+    cand_sl = np.empty((n_sl, 2))
+    moved = np.empty(n_sl)
+    sl_nodes = slide[:, 0].copy()
+    no_foot = np.empty((0, 2))
+    worst, at, count = 0.0, 0, 0
+    for s in range(steps):
+        if iterations + weight > cap + 1e-9:
+            return RUN_CAP, s, iterations, worst, at, count
+        iterations += weight
+        c, worst, at, drift, count, asks = step_free(
+            p, moving, free, indptr, adj, eid, ld, attraction, total, damp, hbar, dt, step_cap,
+            deep, anchor, d0, reach, cand, near, ok, tol)
+        if c:
+            if asks:
+                # The inside test of the candidates the anchor test left open, in their order.
+                rest = np.empty(asks, dtype=np.int64)
+                m = 0
+                for r in range(c):
+                    if not ok[r]:
+                        rest[m] = r
+                        m += 1
+                q = np.empty((asks, 2))
+                for j in range(asks):
+                    q[j, 0], q[j, 1] = cand[rest[j], 0], cand[rest[j], 1]
+                d = boundary_query(q, kind, shape, origin, g, no_foot)
+                for j in range(asks):
+                    ok[rest[j]] = not d[j] > 0.0
+            worst, at, drift, count = take_near(p, near, cand, c, ok, hbar, anchor, tol, worst, at,
+                                                drift, count)
+        if n_sl:
+            slide_targets(p, slide, total, hbar, ld_prev, ld_next, dt, target)
+            boundary_query(target, kind, shape, origin, g, cand_sl)
+            slide_accept(p, slide, hbar, cand_sl, moved)
+            worst, at, drift, count = fold_moves(sl_nodes, moved, p, anchor, hbar, tol, worst, at,
+                                                 drift, count)
+        worst = max(worst, 0.0)
+        at = max(at, 0)
+        if worst < tol:
+            return RUN_CONVERGED, s + 1, iterations, worst, at, count
+        if count <= tail and iterations >= tail_after:
+            return RUN_TAIL, s + 1, iterations, worst, at, count
+        if drift > retriangulate:
+            return RUN_RETRIANGULATE, s + 1, iterations, worst, at, count
+    return RUN_DONE, steps, iterations, worst, at, count
