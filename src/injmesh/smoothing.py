@@ -109,10 +109,12 @@ Other choices the paper leaves open:
   methods) cost several times more.  When the sliding nodes project onto the domain's boundary
   and the domain has a :meth:`~injmesh.geometry.Domain.kernel_boundary` (B-reps, circles,
   rectangles and their exact set operations), the steps up to the next connectivity update
-  are one compiled call (``kernels.smooth.run_steps``): the same kernels in the same order,
-  and the boundary queries the methods make, so the meshes are bit-identical to the loop's
-  (regions' curves and plain signed distances keep the loop).  The paper's six cases: 6-15 %
-  less time in all.
+  are one compiled call (``kernels.smooth.run_steps``), and the connectivity update between
+  two runs is two compiled calls around the one Python call it needs, h at the new bars'
+  midpoints (``kernels.smooth.relink`` and ``resize``; it was ~180 us of a dozen calls, three
+  quarters of a run's time).  The same kernels in the same order, and the boundary queries
+  the methods make, so the meshes are bit-identical to the loop's (regions' curves and plain
+  signed distances keep the loop).  The paper's six cases: 12-22 % less time in all.
 
   Measured with ``benchmarks/scale.py`` (CPU seconds of the smoothing stage, 2 cores under
   heavy load): 1e3 nodes 0.15 -> 0.04, 1e4 2.44 -> 0.28, 1e5 17.8 -> 1.7, together with the
@@ -601,6 +603,9 @@ class _Relaxation:
         """
         from .kernels.delaunay import flip_rows_to_delaunay, flips_logged
 
+        if not everywhere and self._kernel_boundary is not None and not self._k.threads.worth(len(self.p)):
+            self._retriangulate_compiled()
+            return
         moved: IntArray | None = None
         log: NDArray[np.int64] | None = None
         if everywhere:
@@ -621,6 +626,37 @@ class _Relaxation:
         else:
             # No flip keeps the node lists (the usual case once the nodes settle).
             self._connect(rebuild=res > 0)
+
+    def _retriangulate_compiled(self) -> None:
+        """The local update of :meth:`retriangulate` in two compiled calls around h
+        (``kernels.smooth.relink`` and ``resize``): the same kernels in the same order, the
+        depth asked through the domain's compiled boundary, so the same numbers."""
+        k, p = self._k, self.p
+        indptr, adj, eid, ld = self._csr
+        if len(self._seen) != len(ld):
+            self._seen = np.zeros(len(ld), dtype=np.bool_)
+        constant = getattr(self.h, "constant", None)
+        graded = constant is None
+        sl = np.ascontiguousarray(self._sl, dtype=np.int64)
+        outcome, nodes, near, bars, mid, rows = k.relink(
+            p, self.anchor, self.hbar, LOCAL_DRIFT, self._t32, self._nbr, self._con, self._vt,
+            self.tri, indptr, adj, eid, ld, self._bars, self._mark, self._seen, graded,
+            math.nan if constant is None else float(constant), sl)
+        if outcome == k.RELINK_INVERTED:
+            self._from_scratch()
+            return
+        if outcome == k.RELINK_REBUILD:
+            self._connect(rebuild=True)
+            return
+        values = np.asarray(self.h(mid), dtype=np.float64) if len(mid) else np.zeros(0)
+        no_bars = np.zeros(0)
+        ld_prev, ld_next = self._ld_slide if len(sl) else (no_bars, no_bars)
+        kind, shape, origin, g = self._kernel_boundary  # type: ignore[misc]
+        exact = bool(getattr(self.domain, "exact_distance", False))
+        k.resize(values, bars, rows, ld, ld_prev, ld_next, p, nodes, near, indptr, adj, eid, DT,
+                 STABLE_GAIN, graded, self.hbar, self._damp, self._is_free, self.anchor, self._d0,
+                 self._deep, DEEP, exact, kind, shape, origin, g)
+        self.retriangulations += 1
 
     def _from_scratch(self) -> None:
         """After flips met an inverted triangle: a new triangulation, or ``_PatchInverted`` for

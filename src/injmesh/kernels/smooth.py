@@ -32,6 +32,7 @@ from numba import njit
 
 from . import threads
 from .brep import nearest as _brep_nearest
+from .delaunay import flips_logged as _flips_logged
 
 
 @njit(cache=True, inline="always")
@@ -1086,3 +1087,133 @@ def run_steps(p, moving, free, indptr, adj, eid, ld, attraction, total, damp, hb
         if drift > retriangulate:
             return RUN_RETRIANGULATE, s + 1, iterations, worst, at, count
     return RUN_DONE, steps, iterations, worst, at, count
+
+
+# --- a connectivity update in two calls (smoothing._Relaxation.retriangulate, compiled run) -----
+# After a compiled run the update between two runs was a dozen kernel calls and NumPy lines
+# (~180 us on a paper case, three quarters of a run's time).  It is two calls around the one
+# thing that must stay in Python, h at the new midpoints: :func:`relink` (flips, node lists,
+# the nodes and bars to renew, the midpoints) and :func:`resize` (the new ld, hbar, stability
+# limits, inside flags and anchors), the same kernels in the same order as the Python path.
+
+#: :func:`relink`'s outcomes: the lists follow the flips; the flips met an inverted triangle
+#: (a triangulation from scratch); a row ran out of free slots (rebuild the lists).
+RELINK_OK, RELINK_INVERTED, RELINK_REBUILD = 0, 1, 2
+
+
+@njit(cache=True)
+def relink(p, anchor, hbar, local_drift, t32, nbr, con, vt, tri, indptr, adj, eid, ld, bars,  # type: ignore[no-untyped-def]
+           mark, seen, graded, constant, slide):
+    """The local update of ``smoothing._Relaxation.retriangulate`` up to h: the nodes that
+    drifted more than ``local_drift * hbar`` (:func:`drifted`), Lawson flips from their
+    triangles (``kernels.delaunay.flips_logged``), the node lists and ``tri`` following the
+    flips (:func:`flip_diff`, :func:`flip_update`; ``constant`` is the ld of a new bar when h
+    is constant, NaN otherwise), then what :func:`resize` renews: the nodes (the drifted ones
+    and the flips' corners), their ring (:func:`moved_bars`), with ``graded`` their bars and
+    the points where h is wanted (the bars' midpoints, then the midpoints of the boundary bars
+    of the sliding rows that hold one of the nodes, previous side then next side) and those
+    rows.
+
+    Returns ``(outcome, nodes, near, bars, mid, rows)``.
+    """
+    n = p.shape[0]
+    k = 0
+    moved = np.empty(n, dtype=np.int64)
+    flag = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        if _norm(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) > local_drift * hbar[i]:
+            flag[i] = True
+            moved[k] = i
+            k += 1
+    moved = moved[:k]
+    nt = 0
+    rows = np.empty(t32.shape[0], dtype=np.int32)
+    for t in range(t32.shape[0]):
+        if flag[t32[t, 0]] or flag[t32[t, 1]] or flag[t32[t, 2]]:
+            rows[nt] = t
+            nt += 1
+    res, log = _flips_logged(p, t32, nbr, con, vt, rows[:nt], False)
+    none_i = np.empty(0, dtype=np.int64)
+    none_p = np.empty((0, 2))
+    if res < 0:
+        return RELINK_INVERTED, none_i, none_i, none_i, none_p, none_i
+    nodes = moved
+    if res > 0:
+        changed, removed, added = flip_diff(log[:, :2].copy().ravel(), log[:, 2:4].copy(),
+                                            log[:, 4:6].copy())
+        if removed.shape[0] != added.shape[0]:
+            return RELINK_REBUILD, none_i, none_i, none_i, none_p, none_i
+        ids = flip_update(indptr, adj, eid, bars, removed, added)
+        if ids.shape[0] != removed.shape[0]:
+            return RELINK_REBUILD, none_i, none_i, none_i, none_p, none_i
+        if not np.isnan(constant):
+            for r in range(ids.shape[0]):
+                ld[ids[r]] = constant
+        for r in range(changed.shape[0]):
+            t = changed[r]
+            tri[t, 0], tri[t, 1], tri[t, 2] = t32[t, 0], t32[t, 1], t32[t, 2]
+        nodes = np.unique(np.concatenate((moved, added.ravel())))
+    graded = graded and nodes.shape[0] > 0
+    near, b, mid_bars = moved_bars(indptr, adj, eid, bars, p, nodes, mark, seen, graded)
+    n_sl = slide.shape[0]
+    rows_sl = np.empty(n_sl, dtype=np.int64)
+    m = 0
+    if n_sl and nodes.shape[0]:
+        for i in nodes:
+            mark[i] = 1
+        for r in range(n_sl):
+            if mark[slide[r, 0]] or mark[slide[r, 1]] or mark[slide[r, 2]]:
+                rows_sl[m] = r
+                m += 1
+        for i in nodes:
+            mark[i] = 0
+    rows_sl = rows_sl[:m]
+    nb = b.shape[0]
+    mid = np.empty((nb + 2 * m, 2))
+    mid[:nb] = mid_bars
+    for r in range(m):
+        s = rows_sl[r]
+        i, j, l = slide[s, 0], slide[s, 1], slide[s, 2]
+        mid[nb + r, 0] = 0.5 * (p[i, 0] + p[j, 0])
+        mid[nb + r, 1] = 0.5 * (p[i, 1] + p[j, 1])
+        mid[nb + m + r, 0] = 0.5 * (p[i, 0] + p[l, 0])
+        mid[nb + m + r, 1] = 0.5 * (p[i, 1] + p[l, 1])
+    return RELINK_OK, nodes, near, b, mid, rows_sl
+
+
+@njit(cache=True)
+def resize(values, b, rows, ld, ld_prev, ld_next, p, nodes, near, indptr, adj, eid, dt, gain,  # type: ignore[no-untyped-def]
+           graded, hbar, damp, is_free, anchor, d0, deep_flags, deep, exact, kind, shape, origin, g):
+    """The rest of the update :func:`relink` began: h's ``values`` at its points become the
+    bars' ld and the sliding rows' boundary-bar ld, the ring ``near`` renews hbar and its
+    stability limits (:func:`renew_sizes`), the free nodes among ``nodes`` their inside depth
+    (:func:`depth_bounds`, the rest asked through :func:`boundary_query`, :func:`mark_deep`),
+    and ``nodes`` their anchors."""
+    nb = b.shape[0]
+    m = rows.shape[0]
+    if graded and nodes.shape[0] > 0:
+        for r in range(nb):
+            ld[b[r]] = values[r]
+    for r in range(m):
+        ld_prev[rows[r]] = values[nb + r]
+        ld_next[rows[r]] = values[nb + m + r]
+    renew_sizes(p, near, indptr, adj, eid, ld, dt, gain, graded and nodes.shape[0] > 0, hbar, damp)
+    k = 0
+    free = np.empty(nodes.shape[0], dtype=np.int64)
+    for i in nodes:
+        if is_free[i]:
+            free[k] = i
+            k += 1
+    free = free[:k]
+    if k:
+        ask = depth_bounds(p, anchor, d0, hbar, free, deep, exact)
+        if ask.shape[0]:
+            q = np.empty((ask.shape[0], 2))
+            for r in range(ask.shape[0]):
+                q[r, 0], q[r, 1] = p[ask[r], 0], p[ask[r], 1]
+            d = boundary_query(q, kind, shape, origin, g, np.empty((0, 2)))
+            for r in range(ask.shape[0]):
+                d0[ask[r]] = d[r]
+        mark_deep(d0, hbar, free, deep, deep_flags)
+    for i in nodes:
+        anchor[i, 0], anchor[i, 1] = p[i, 0], p[i, 1]
