@@ -801,28 +801,47 @@ def test_a_domain_with_its_own_methods_has_no_compiled_boundary() -> None:
     assert Implicit(lambda p: np.hypot(p[:, 0], p[:, 1]) - 1, (-1, -1, 1, 1)).kernel_boundary() is None
 
 
-@pytest.mark.parametrize("name", list(_KINDS))
+_REGIONS = {
+    "inclusions": {"regions": {"disc": Circle((0.6, -0.6), 0.25),
+                               "wedge": Polygon([(-0.9, -0.9), (-0.3, -0.9), (-0.6, -0.4)])}},
+    "crack": {"curves": {"crack": np.array([(-0.8, 0.6), (-0.2, 0.5), (0.3, 0.8)])}},
+}
+
+
+@pytest.mark.parametrize("name", [*_KINDS, *_REGIONS])
 def test_compiled_steps_make_the_mesh_of_the_python_loop(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The relaxation's compiled runs (kernels.smooth.run_steps) and the loop over kernels and
-    the domain's methods give the same mesh, bit for bit, graded h and repair rounds included."""
+    """The relaxation's compiled runs and updates (kernels.smooth.run_steps, relink, resize)
+    and the loop over kernels and the domain's and curves' methods give the same mesh, bit for
+    bit, graded h, repair rounds and regions' interior curves included."""
     import injmesh.smoothing as S
 
-    dom = _KINDS[name]()
+    dom = _KINDS["csg"]() if name in _REGIONS else _KINDS[name]()
+    kw = _REGIONS.get(name, {})
     x0, y0 = dom.bbox[:2]
 
     def h(p: np.ndarray) -> np.ndarray:
         return 0.08 + 0.1 * np.hypot(p[:, 0] - x0, p[:, 1] - y0)
 
-    compiled = generate(dom, h)
+    used = []
     init = S._Relaxation.__init__
+
+    def spy(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+        init(self, *args, **kwargs)
+        used.append(self._kernel_boundary is not None)
+
+    monkeypatch.setattr(S._Relaxation, "__init__", spy)
+    compiled = generate(dom, h, **kw)
+    assert all(used)  # every relaxation stepped in compiled calls
+    monkeypatch.undo()
 
     def python_loop(self, *args, **kwargs):  # type: ignore[no-untyped-def]
         init(self, *args, **kwargs)
-        assert self._kernel_boundary is not None or self._patch or kwargs.get("project") is not None
         self._kernel_boundary = None
 
     monkeypatch.setattr(S._Relaxation, "__init__", python_loop)
-    loop = generate(dom, h)
+    loop = generate(dom, h, **kw)
     assert compiled.stats.iterations == loop.stats.iterations
     assert np.array_equal(compiled.points, loop.points)
     assert np.array_equal(compiled.triangles, loop.triangles)
+    if kw:
+        assert np.array_equal(compiled.triangle_tags, loop.triangle_tags)

@@ -25,7 +25,7 @@ from .boundary import (
 )
 from .errors import ConvergenceWarning, MeshError, NodeBudgetError
 from .geometry import BRep, Difference, Domain, GeometryError, Intersection, Union, as_domain
-from .geometry.base import as_points
+from .geometry.base import KernelBoundary, as_points
 from .geometry.regions import Constraints, CurvesLike, RegionsLike, build_constraints
 from .geometry.tracing import grid_spacing
 from .injection import inject_nodes
@@ -895,7 +895,17 @@ def _injection_with_curves(
             out[sel] = projectors[i](q[sel])
         return out
 
-    itf = Interfaces(ids[cm.edges], cm.edge_piece + 1, node_group, project)
+    # The projectors as compiled boundaries, when each is a domain's own projection with one:
+    # then the relaxation projects curve nodes in its compiled steps.
+    kernels: list[KernelBoundary] = []
+    for f in projectors:
+        owner = getattr(f, "__self__", None)
+        kb = owner.kernel_boundary() if isinstance(owner, Domain) and f == owner.project else None
+        if kb is None:
+            kernels = []
+            break
+        kernels.append(kb)
+    itf = Interfaces(ids[cm.edges], cm.edge_piece + 1, node_group, project, tuple(kernels), which)
     result = smooth(
         domain, hc, points, n_fixed=len(seeds), sliding=np.concatenate(rows), walls=bnd.edges,
         smoothing=smoothing, max_iterations=max_iterations, callback=callback, interfaces=itf,

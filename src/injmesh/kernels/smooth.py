@@ -1027,13 +1027,84 @@ def boundary_query(q, kind, shape, origin, g, foot):  # type: ignore[no-untyped-
     return d
 
 
+def pack_boundaries(boundaries):  # type: ignore[no-untyped-def]
+    """Several compiled boundaries (:meth:`~injmesh.geometry.Domain.kernel_boundary`) as
+    flat arrays one kernel signature takes, whatever their number: ``(kinds (B,), shapes (B,
+    4), origins (B, 2), cat, offs (B + 1, 25))``, ``cat`` the 25 arrays of every ``g``
+    concatenated and ``offs`` where each boundary's rows start in each (:func:`_query_of`
+    slices them back; a slice of rows keeps the arrays' C layout, so ``nearest`` keeps its one
+    specialisation)."""
+    kinds = np.array([b[0] for b in boundaries], dtype=np.int64)
+    shapes = np.zeros((len(boundaries), 4))
+    for t, b in enumerate(boundaries):
+        shapes[t, :len(b[1])] = b[1]
+    origins = np.array([b[2] for b in boundaries], dtype=np.float64).reshape(-1, 2)
+    gs = [b[3] for b in boundaries]
+    if len(gs) == 1:
+        cat = tuple(gs[0])
+    else:
+        cat = tuple(np.ascontiguousarray(np.concatenate([g[j] for g in gs])) for j in range(len(gs[0])))
+    offs = np.zeros((len(gs) + 1, len(gs[0])), dtype=np.int64)
+    offs[1:] = np.cumsum([[len(a) for a in g] for g in gs], axis=0)
+    return kinds, shapes, origins, cat, offs
+
+
+@njit(cache=True)
+def _query_of(q, kinds, shapes, origins, cat, offs, t, foot):  # type: ignore[no-untyped-def]
+    """:func:`boundary_query` on boundary ``t`` of :func:`pack_boundaries`' arrays."""
+    o = offs[t]
+    e = offs[t + 1]
+    g = (cat[0][o[0]:e[0]], cat[1][o[1]:e[1]], cat[2][o[2]:e[2]], cat[3][o[3]:e[3]],
+         cat[4][o[4]:e[4]], cat[5][o[5]:e[5]], cat[6][o[6]:e[6]], cat[7][o[7]:e[7]],
+         cat[8][o[8]:e[8]], cat[9][o[9]:e[9]], cat[10][o[10]:e[10]], cat[11][o[11]:e[11]],
+         cat[12][o[12]:e[12]], cat[13][o[13]:e[13]], cat[14][o[14]:e[14]],
+         cat[15][o[15]:e[15]], cat[16][o[16]:e[16]], cat[17][o[17]:e[17]],
+         cat[18][o[18]:e[18]], cat[19][o[19]:e[19]], cat[20][o[20]:e[20]],
+         cat[21][o[21]:e[21]], cat[22][o[22]:e[22]], cat[23][o[23]:e[23]],
+         cat[24][o[24]:e[24]])
+    return boundary_query(q, kinds[t], shapes[t], origins[t], g, foot)
+
+
+@njit(cache=True)
+def _project_rows(target, kinds, shapes, origins, cat, offs, points, out):  # type: ignore[no-untyped-def]
+    """Each point onto boundary ``target[r]`` (0: the domain's), into ``out``: one query per
+    boundary on its points in row order, as the Python projectors are called (on a B-rep
+    the foot of an exact tie depends on the points queried before it)."""
+    n = points.shape[0]
+    for t in range(kinds.shape[0]):
+        m = 0
+        for r in range(n):
+            if target[r] == t:
+                m += 1
+        if m == 0:
+            continue
+        if m == n:
+            _query_of(points, kinds, shapes, origins, cat, offs, t, out)
+            return
+        rows = np.empty(m, dtype=np.int64)
+        q = np.empty((m, 2))
+        m = 0
+        for r in range(n):
+            if target[r] == t:
+                rows[m] = r
+                q[m, 0], q[m, 1] = points[r, 0], points[r, 1]
+                m += 1
+        foot = np.empty((m, 2))
+        _query_of(q, kinds, shapes, origins, cat, offs, t, foot)
+        for j in range(m):
+            out[rows[j], 0], out[rows[j], 1] = foot[j, 0], foot[j, 1]
+
+
 @njit(cache=True)
 def run_steps(p, moving, free, indptr, adj, eid, ld, attraction, total, damp, hbar, dt, step_cap,  # type: ignore[no-untyped-def]
-              deep, anchor, d0, reach, cand, near, ok, tol, slide, ld_prev, ld_next, kind, shape,
-              origin, g, iterations, weight, cap, steps, tail, tail_after, retriangulate):
+              deep, anchor, d0, reach, cand, near, ok, tol, slide, ld_prev, ld_next, target, kinds,
+              shapes, origins, cat, offs, iterations, weight, cap, steps, tail, tail_after,
+              retriangulate):
     """Up to ``steps`` Euler steps of ``smoothing._Relaxation.run`` (free nodes by
     :func:`step_free` and :func:`take_near`, sliding nodes by :func:`slide_targets`, the
-    projection and :func:`slide_accept`), the domain asked through :func:`boundary_query`.
+    projection and :func:`slide_accept`), the boundaries asked through :func:`boundary_query`:
+    boundary 0 of :func:`pack_boundaries`' arrays is the domain's (the inside test), sliding
+    row r projects onto boundary ``target[r]`` (the domain's, or its interior curve's).
 
     Stops before a step that would take ``iterations`` past ``cap`` (each step adds
     ``weight``), or after a step whose largest move is below ``tol`` (converged), whose moving
@@ -1042,7 +1113,7 @@ def run_steps(p, moving, free, indptr, adj, eid, ld, attraction, total, damp, hb
     last step over hbar, its node, nodes that moved more than tol in it)``.
     """
     n_sl = slide.shape[0]
-    target = np.empty((n_sl, 2))
+    step_to = np.empty((n_sl, 2))
     cand_sl = np.empty((n_sl, 2))
     moved = np.empty(n_sl)
     sl_nodes = slide[:, 0].copy()
@@ -1067,14 +1138,14 @@ def run_steps(p, moving, free, indptr, adj, eid, ld, attraction, total, damp, hb
                 q = np.empty((asks, 2))
                 for j in range(asks):
                     q[j, 0], q[j, 1] = cand[rest[j], 0], cand[rest[j], 1]
-                d = boundary_query(q, kind, shape, origin, g, no_foot)
+                d = _query_of(q, kinds, shapes, origins, cat, offs, 0, no_foot)
                 for j in range(asks):
                     ok[rest[j]] = not d[j] > 0.0
             worst, at, drift, count = take_near(p, near, cand, c, ok, hbar, anchor, tol, worst, at,
                                                 drift, count)
         if n_sl:
-            slide_targets(p, slide, total, hbar, ld_prev, ld_next, dt, target)
-            boundary_query(target, kind, shape, origin, g, cand_sl)
+            slide_targets(p, slide, total, hbar, ld_prev, ld_next, dt, step_to)
+            _project_rows(target, kinds, shapes, origins, cat, offs, step_to, cand_sl)
             slide_accept(p, slide, hbar, cand_sl, moved)
             worst, at, drift, count = fold_moves(sl_nodes, moved, p, anchor, hbar, tol, worst, at,
                                                  drift, count)
@@ -1183,11 +1254,12 @@ def relink(p, anchor, hbar, local_drift, t32, nbr, con, vt, tri, indptr, adj, ei
 
 @njit(cache=True)
 def resize(values, b, rows, ld, ld_prev, ld_next, p, nodes, near, indptr, adj, eid, dt, gain,  # type: ignore[no-untyped-def]
-           graded, hbar, damp, is_free, anchor, d0, deep_flags, deep, exact, kind, shape, origin, g):
+           graded, hbar, damp, is_free, anchor, d0, deep_flags, deep, exact, kinds, shapes, origins,
+           cat, offs):
     """The rest of the update :func:`relink` began: h's ``values`` at its points become the
     bars' ld and the sliding rows' boundary-bar ld, the ring ``near`` renews hbar and its
     stability limits (:func:`renew_sizes`), the free nodes among ``nodes`` their inside depth
-    (:func:`depth_bounds`, the rest asked through :func:`boundary_query`, :func:`mark_deep`),
+    (:func:`depth_bounds`, the rest asked of boundary 0, the domain's, :func:`mark_deep`),
     and ``nodes`` their anchors."""
     nb = b.shape[0]
     m = rows.shape[0]
@@ -1211,7 +1283,7 @@ def resize(values, b, rows, ld, ld_prev, ld_next, p, nodes, near, indptr, adj, e
             q = np.empty((ask.shape[0], 2))
             for r in range(ask.shape[0]):
                 q[r, 0], q[r, 1] = p[ask[r], 0], p[ask[r], 1]
-            d = boundary_query(q, kind, shape, origin, g, np.empty((0, 2)))
+            d = _query_of(q, kinds, shapes, origins, cat, offs, 0, np.empty((0, 2)))
             for r in range(ask.shape[0]):
                 d0[ask[r]] = d[r]
         mark_deep(d0, hbar, free, deep, deep_flags)
