@@ -811,8 +811,9 @@ _REGIONS = {
 @pytest.mark.parametrize("name", [*_KINDS, *_REGIONS])
 def test_compiled_steps_make_the_mesh_of_the_python_loop(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
     """The relaxation's compiled runs and updates (kernels.smooth.run_steps, relink, resize)
-    and the loop over kernels and the domain's and curves' methods give the same mesh, bit for
-    bit, graded h, repair rounds and regions' interior curves included."""
+    and the quality pass's compiled trials (optimize_trials), and the loops over kernels and
+    the domain's and curves' methods give the same mesh, bit for bit, graded h, repair rounds
+    and regions' interior curves included."""
     import injmesh.smoothing as S
 
     dom = _KINDS["csg"]() if name in _REGIONS else _KINDS[name]()
@@ -834,11 +835,10 @@ def test_compiled_steps_make_the_mesh_of_the_python_loop(name: str, monkeypatch:
     assert all(used)  # every relaxation stepped in compiled calls
     monkeypatch.undo()
 
-    def python_loop(self, *args, **kwargs):  # type: ignore[no-untyped-def]
-        init(self, *args, **kwargs)
-        self._kernel_boundary = None
-
-    monkeypatch.setattr(S._Relaxation, "__init__", python_loop)
+    # No projector offers the kernels its boundaries: every step, update and quality-pass
+    # trial goes through the Python loops and the domain's and curves' methods.
+    for cls in (S._OnDomain, S._OnCurves, S._Renumbered):
+        monkeypatch.setattr(cls, "compiled", lambda self, domain, nodes: None)
     loop = generate(dom, h, **kw)
     assert compiled.stats.iterations == loop.stats.iterations
     assert np.array_equal(compiled.points, loop.points)

@@ -39,7 +39,8 @@ Two bar forces are used, in this order (``smoothing="hybrid"``, the default):
    their star (line search, connectivity kept; a node at most ``OPTIMIZE_MOVES`` times, and
    not again until its star changes after a failed trial).  Each sweep visits only those candidates'
    stars; targets, trials and star updates are compiled (``kernels.smooth.star_targets``,
-   ``star_trial``, ``restar``), the domain is asked once per trial length.
+   ``star_trial``, ``restar``), the domain is asked once per trial length; on a compiled
+   boundary a sweep's whole line search is one call (``optimize_trials``, the same numbers).
 
 ``smoothing="attractive"`` runs the paper's force alone to its convergence, to reproduce the
 paper as printed.
@@ -1919,14 +1920,17 @@ def _optimize(
     from .kernels.smooth import (
         clear_stars,
         corners_by_node,
+        optimize_trials,
         restar,
         star_independent,
         star_min,
         star_targets,
-        star_trial,
     )
 
     reach = _inside_reach(domain)
+    # A projector that the kernels can stand in for (see _Relaxation): each sweep's trials
+    # in one compiled call.
+    compiled = getattr(_OnDomain(domain) if project is None else project, "compiled", None)
     p = p.copy()
     n = len(p)
     # Boundary neighbours: a boundary node's move must stay next to its own two segments.
@@ -1958,27 +1962,14 @@ def _optimize(
         move = order[star_independent(order.astype(np.int64), t64, start, by_node, scratch)]
         target = star_targets(p, t64, start, by_node, move)
         on_bnd = on_boundary[move]
-        # The depth of the free nodes, once per sweep: a trial step shorter than it (half of
-        # it for a d that is not an exact distance) stays inside without asking the domain,
-        # which on a detailed outline was a BVH query of every moving node per trial length.
-        free = np.flatnonzero(~on_bnd)
-        depth = np.zeros(len(move))
-        depth[free] = -reach * domain.sdf(p[move[free]])
-        # Line search: the full step to the target, then shorter ones, until the star improves.
-        done = np.zeros(len(move), dtype=bool)
-        for frac in (1.0, 0.5, 0.25, 0.125):
-            step = p[move] + frac * (target - p[move])
-            if on_bnd.any():
-                step[on_bnd] = (domain.project(step[on_bnd]) if project is None
-                                else project(step[on_bnd], move[on_bnd]))
-            inside = np.hypot(*(step - p[move]).T) < depth
-            ask = np.flatnonzero(~inside & ~on_bnd & ~done)
-            if len(ask):
-                inside[ask] = domain.sdf(step[ask]) < 0
-            ok = star_trial(p, t64, start, by_node, move, np.ascontiguousarray(step), star, prev_b,
-                            next_b, on_bnd, inside, done)
-            p[move[ok]] = step[ok]
-            done |= ok
+        kb = compiled(domain, move[on_bnd]) if compiled is not None else None
+        if kb is not None:
+            # The line search below in one compiled call: the same numbers.
+            done = optimize_trials(p, t64, start, by_node, move, target, star, prev_b, next_b,
+                                   on_bnd, reach, kb[0], *kb[1])
+        else:
+            done = _line_search(domain, p, t64, start, by_node, move, target, star, prev_b, next_b,
+                                on_bnd, reach, project)
         if not done.any():
             break
         moved = move[done]
@@ -1989,6 +1980,39 @@ def _optimize(
         # q of the triangles that changed, and the stars of their nodes.
         restar(p, t64, start, by_node, q, star, moved)
     return p
+
+
+def _line_search(domain: Domain, p: FloatArray, t64: NDArray[np.int64], start: NDArray[np.int64],
+                 by_node: NDArray[np.int64], move: IntArray, target: FloatArray, star: FloatArray,
+                 prev_b: IntArray, next_b: IntArray, on_bnd: NDArray[np.bool_], reach: float,
+                 project: NodeProjector | None) -> NDArray[np.bool_]:
+    """One sweep's trials of :func:`_optimize` through the domain's and projector's methods
+    (``kernels.smooth.optimize_trials`` makes them on a compiled boundary); the moves are
+    taken in ``p``.  Returns which nodes of ``move`` moved."""
+    from .kernels.smooth import star_trial
+
+    # The depth of the free nodes, once per sweep: a trial step shorter than it (half of
+    # it for a d that is not an exact distance) stays inside without asking the domain,
+    # which on a detailed outline was a BVH query of every moving node per trial length.
+    free = np.flatnonzero(~on_bnd)
+    depth = np.zeros(len(move))
+    depth[free] = -reach * domain.sdf(p[move[free]])
+    # Line search: the full step to the target, then shorter ones, until the star improves.
+    done = np.zeros(len(move), dtype=bool)
+    for frac in (1.0, 0.5, 0.25, 0.125):
+        step = p[move] + frac * (target - p[move])
+        if on_bnd.any():
+            step[on_bnd] = (domain.project(step[on_bnd]) if project is None
+                            else project(step[on_bnd], move[on_bnd]))
+        inside = np.hypot(*(step - p[move]).T) < depth
+        ask = np.flatnonzero(~inside & ~on_bnd & ~done)
+        if len(ask):
+            inside[ask] = domain.sdf(step[ask]) < 0
+        ok = star_trial(p, t64, start, by_node, move, np.ascontiguousarray(step), star, prev_b,
+                        next_b, on_bnd, inside, done)
+        p[move[ok]] = step[ok]
+        done |= ok
+    return done
 
 
 #: Edge (a, b), a < b, as the integer a * _KEY + b (node numbers fit in 31 bits).

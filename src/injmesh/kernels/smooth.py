@@ -1289,3 +1289,81 @@ def resize(values, b, rows, ld, ld_prev, ld_next, p, nodes, near, indptr, adj, e
         mark_deep(d0, hbar, free, deep, deep_flags)
     for i in nodes:
         anchor[i, 0], anchor[i, 1] = p[i, 0], p[i, 1]
+
+
+@njit(cache=True)
+def optimize_trials(p, tri, start, corner, move, target, star, prev_b, next_b, on_bnd, reach,  # type: ignore[no-untyped-def]
+                    bnd_target, kinds, shapes, origins, cat, offs):
+    """One sweep's line search of ``smoothing._optimize`` on a compiled boundary: the free
+    nodes' depth (boundary 0 asked at their positions), then for the step fractions 1, 1/2,
+    1/4, 1/8 the trial positions, the sliding ones projected onto their boundaries
+    (``bnd_target``, one per sliding row of ``move`` in order), the inside test of the others
+    that go further than their depth allows, and :func:`star_trial`; the moves are taken.
+    The same calls, on the same points in the same order, as the Python loop.  Returns which
+    nodes moved."""
+    m = move.shape[0]
+    depth = np.zeros(m)
+    n_free = 0
+    for a in range(m):
+        if not on_bnd[a]:
+            n_free += 1
+    if n_free:
+        rows = np.empty(n_free, dtype=np.int64)
+        q = np.empty((n_free, 2))
+        k = 0
+        for a in range(m):
+            if not on_bnd[a]:
+                rows[k] = a
+                q[k, 0], q[k, 1] = p[move[a], 0], p[move[a], 1]
+                k += 1
+        d = _query_of(q, kinds, shapes, origins, cat, offs, 0, np.empty((0, 2)))
+        for k in range(n_free):
+            depth[rows[k]] = -reach * d[k]
+    n_bnd = m - n_free
+    bnd_rows = np.empty(n_bnd, dtype=np.int64)
+    k = 0
+    for a in range(m):
+        if on_bnd[a]:
+            bnd_rows[k] = a
+            k += 1
+    done = np.zeros(m, dtype=np.bool_)
+    step = np.empty((m, 2))
+    inside = np.empty(m, dtype=np.bool_)
+    bq = np.empty((n_bnd, 2))
+    bf = np.empty((n_bnd, 2))
+    for frac in (1.0, 0.5, 0.25, 0.125):
+        for a in range(m):
+            i = move[a]
+            step[a, 0] = p[i, 0] + frac * (target[a, 0] - p[i, 0])
+            step[a, 1] = p[i, 1] + frac * (target[a, 1] - p[i, 1])
+        if n_bnd:
+            for k in range(n_bnd):
+                bq[k, 0], bq[k, 1] = step[bnd_rows[k], 0], step[bnd_rows[k], 1]
+            _project_rows(bnd_target, kinds, shapes, origins, cat, offs, bq, bf)
+            for k in range(n_bnd):
+                step[bnd_rows[k], 0], step[bnd_rows[k], 1] = bf[k, 0], bf[k, 1]
+        n_ask = 0
+        for a in range(m):
+            i = move[a]
+            inside[a] = math.hypot(step[a, 0] - p[i, 0], step[a, 1] - p[i, 1]) < depth[a]
+            if not inside[a] and not on_bnd[a] and not done[a]:
+                n_ask += 1
+        if n_ask:
+            ask = np.empty(n_ask, dtype=np.int64)
+            q = np.empty((n_ask, 2))
+            k = 0
+            for a in range(m):
+                if not inside[a] and not on_bnd[a] and not done[a]:
+                    ask[k] = a
+                    q[k, 0], q[k, 1] = step[a, 0], step[a, 1]
+                    k += 1
+            d = _query_of(q, kinds, shapes, origins, cat, offs, 0, np.empty((0, 2)))
+            for k in range(n_ask):
+                inside[ask[k]] = d[k] < 0.0
+        ok = star_trial(p, tri, start, corner, move, step, star, prev_b, next_b, on_bnd, inside, done)
+        for a in range(m):
+            if ok[a]:
+                i = move[a]
+                p[i, 0], p[i, 1] = step[a, 0], step[a, 1]
+                done[a] = True
+    return done
