@@ -595,6 +595,9 @@ class _Relaxation:
         only the others are tested with ``domain.sdf`` at each step.
         """
         k, p = self._k, self.p
+        if rebuild and self._kernel_boundary is not None and not k.threads.worth(len(p)):
+            self._connect_compiled()
+            return
         if rebuild:
             self.tri = self._t32.astype(np.intp)
             # Free slots in every row: later flips update the rows in place (_flipped).
@@ -643,6 +646,45 @@ class _Relaxation:
             self.anchor = np.full_like(p, np.nan)  # no bound yet: every free node is evaluated
         self._inside_depth(self._free)
         self.anchor = p.copy()
+        self.retriangulations += 1
+
+    def _connect_compiled(self) -> None:
+        """``_connect(rebuild=True)`` in two compiled calls around h (``kernels.smooth.
+        connect_bars`` and ``connect_rest``), the depth asked of the compiled boundary: the
+        same numbers."""
+        k, p = self._k, self.p
+        constant = getattr(self.h, "constant", None)
+        sl = np.ascontiguousarray(self._sl, dtype=np.int64)
+        tri, indptr, adj, eid, bars, mid = k.connect_bars(p, self._t32, ROW_SLACK, sl, constant is None)
+        self.tri, self._bars = tri, bars
+        ld_slide: FloatArray | None = None
+        if constant is not None:
+            ld = np.full(len(bars), float(constant))
+        else:
+            values = np.asarray(self.h(mid), dtype=np.float64)
+            ld = np.ascontiguousarray(values[:len(bars)])
+            ld_slide = values[len(bars):]
+        hbar = k.mean_bar_size(indptr, eid, ld)
+        lonely = np.flatnonzero(hbar == 0)  # as in _connect
+        if len(lonely):
+            hbar[lonely] = self.h(p[lonely])
+        self._csr = (indptr, adj, eid, ld)
+        self.hbar = hbar
+        if len(sl) and ld_slide is not None:
+            self._ld_slide = (ld_slide[:len(sl)].copy(), ld_slide[len(sl):].copy())
+        elif len(sl):
+            b, bp, bn = self._sl.T
+            self._ld_slide = (np.array(self.h(0.5 * (p[b] + p[bp])), dtype=np.float64),
+                              np.array(self.h(0.5 * (p[b] + p[bn])), dtype=np.float64))
+        if len(self._d0) != len(p):
+            self._d0 = np.zeros(len(p))
+            self._deep = np.zeros(len(p), dtype=np.bool_)
+            self.anchor = np.full_like(p, np.nan)  # no bound yet: every free node is evaluated
+        assert self._kernel_boundary is not None
+        exact = bool(getattr(self.domain, "exact_distance", False))
+        self._damp = k.connect_rest(p, self._moving, self._free.astype(np.int64), indptr, adj, eid,
+                                    ld, hbar, DT, STABLE_GAIN, self.anchor, self._d0, self._deep,
+                                    DEEP, exact, *self._kernel_boundary[1])
         self.retriangulations += 1
 
     def _inside_depth(self, free: IntArray) -> None:

@@ -1367,3 +1367,59 @@ def optimize_trials(p, tri, start, corner, move, target, star, prev_b, next_b, o
                 p[i, 0], p[i, 1] = step[a, 0], step[a, 1]
                 done[a] = True
     return done
+
+
+# --- a relaxation's first connectivity in two calls (smoothing._Relaxation._connect) ----------
+# Every repair round makes a relaxation of its patch: its set-up (node lists, bars, their
+# midpoints, hbar, stability limits, inside depth) was ~15 NumPy lines and kernel calls around
+# the call of h.  :func:`connect_bars` and :func:`connect_rest` make it in two calls, with the
+# same numbers.
+
+
+@njit(cache=True)
+def connect_bars(p, t32, slack, slide, graded):  # type: ignore[no-untyped-def]
+    """The node lists of the triangles ``t32`` (:func:`adjacency` with ``slack``), the
+    triangles as int64, and with ``graded`` the points where h gives the desired lengths: the
+    bars' midpoints, then those of the sliding rows' bars to their previous and to their next
+    boundary node.  Returns ``(tri, indptr, adj, eid, bars, mid)``."""
+    indptr, adj, eid, bars = adjacency(p.shape[0], t32, slack)
+    tri = t32.astype(np.int64)
+    nb = bars.shape[0]
+    m = slide.shape[0] if graded else 0
+    mid = np.empty((nb + 2 * m, 2) if graded else (0, 2))
+    if graded:
+        for r in range(nb):
+            i, j = bars[r, 0], bars[r, 1]
+            mid[r, 0] = 0.5 * (p[i, 0] + p[j, 0])
+            mid[r, 1] = 0.5 * (p[i, 1] + p[j, 1])
+        for r in range(m):
+            b, bp, bn = slide[r, 0], slide[r, 1], slide[r, 2]
+            mid[nb + r, 0] = 0.5 * (p[b, 0] + p[bp, 0])
+            mid[nb + r, 1] = 0.5 * (p[b, 1] + p[bp, 1])
+            mid[nb + m + r, 0] = 0.5 * (p[b, 0] + p[bn, 0])
+            mid[nb + m + r, 1] = 0.5 * (p[b, 1] + p[bn, 1])
+    return tri, indptr, adj, eid, bars, mid
+
+
+@njit(cache=True)
+def connect_rest(p, moving, free, indptr, adj, eid, ld, hbar, dt, gain, anchor, d0, deep_flags,  # type: ignore[no-untyped-def]
+                 deep, exact, kinds, shapes, origins, cat, offs):
+    """After h gave ``ld`` and hbar: the stability limits of the ``moving`` nodes
+    (:func:`stable_scale` with step ``dt * hbar``; 1 for the others), the inside depth of the
+    ``free`` nodes (:func:`depth_bounds` from their anchors, the rest asked of boundary 0,
+    :func:`mark_deep`) and the anchors at the positions.  Returns the limits."""
+    damp = np.ones(p.shape[0])
+    stable_scale(p, moving, indptr, adj, eid, ld, dt * hbar, gain, damp)
+    if free.shape[0]:
+        ask = depth_bounds(p, anchor, d0, hbar, free, deep, exact)
+        if ask.shape[0]:
+            q = np.empty((ask.shape[0], 2))
+            for r in range(ask.shape[0]):
+                q[r, 0], q[r, 1] = p[ask[r], 0], p[ask[r], 1]
+            d = _query_of(q, kinds, shapes, origins, cat, offs, 0, np.empty((0, 2)))
+            for r in range(ask.shape[0]):
+                d0[ask[r]] = d[r]
+        mark_deep(d0, hbar, free, deep, deep_flags)
+    for i in range(p.shape[0]):
+        anchor[i, 0], anchor[i, 1] = p[i, 0], p[i, 1]
+    return damp
