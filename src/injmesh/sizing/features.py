@@ -73,6 +73,11 @@ FloatArray = NDArray[np.float64]
 FEATURE_CELLS = 256
 #: Nearest boundary vertices examined per node (with their two segments each).
 NEAREST_VERTICES = 3
+#: :func:`_nearest_on_boundary`'s compiled search gives up beyond this many rings of cells
+#: (the k-d tree answers those points), and leaves to the tree the points where two of the
+#: nearest squared distances are this close (relative): their order may hinge on rounding.
+NEAREST_RINGS = 12
+NEAREST_TIE = 1e-12
 #: Boundary vertices examined around each vertex when looking for a facing wall across a gap,
 #: gaps narrower than GAP_WIDTHS grid spacings that refine the grid, and the largest refinement.
 GAP_NEIGHBOURS = 24
@@ -178,24 +183,31 @@ def _nearest_on_boundary(
     Segment ``k`` runs from vertex ``k`` (``seg_a[k]``) to the next one; the candidates are the
     two segments at each of the ``NEAREST_VERTICES`` nearest vertices.
     """
-    from scipy.spatial import cKDTree
-
-    k = min(NEAREST_VERTICES, len(seg_a))
-    # Points deep inside are many times farther from the boundary than its vertices are apart.
-    # A tree whose cells are left as the splits make them (not shrunk to their points) answers
-    # such queries 5-8 times faster than the default one (1.3 -> 0.2 s for the 80,000
-    # medial-axis candidates of a 20,000-vertex outline).  The k nearest are the same when
-    # their distances and the next one's are all different; equidistant vertices (grid-aligned
-    # walls) come in an order that depends on the tree, so those few points ask the default
-    # tree, as before: the same nearest points either way.
-    kq = min(k + 1, len(seg_a))
-    dist_k, near = cKDTree(seg_a, balanced_tree=False, compact_nodes=False).query(p, k=kq)
-    dist_k, near = dist_k.reshape(len(p), kq), near.reshape(len(p), kq)[:, :k]
-    tied = np.any(dist_k[:, 1:] == dist_k[:, :-1], axis=1)
-    if tied.any():
-        near[tied] = cKDTree(seg_a).query(p[tied], k=k)[1].reshape(-1, k)
+    from ..kernels.feature import nearest_vertices
     from ..kernels.outline import nearest_of_segments
 
+    k = min(NEAREST_VERTICES, len(seg_a))
+    # The k nearest vertices, exactly, from a compiled search over a grid of cells about two
+    # vertices' share of the box wide (the 7,000 medial-axis candidates of the paper's
+    # four-hole square: 4 ms, where a k-d tree took 9).  Where two of the k + 1 nearest
+    # distances are (nearly) equal, equidistant vertices (grid-aligned walls) come in an order
+    # that depends on the search, so those points ask the default k-d tree, as they always
+    # have: the same nearest points either way.  So do points farther than NEAREST_RINGS
+    # cells from their vertices (deep inside a detailed outline), where the tree is faster.
+    extent = np.ptp(seg_a, axis=0) if len(seg_a) else np.zeros(2)
+    size = max(2.0 * math.sqrt(float(extent[0] * extent[1]) / max(len(seg_a), 1)),
+               float(extent.max()) / max(len(seg_a), 1))
+    near = np.zeros((len(p), k), dtype=np.int64)
+    clear = np.zeros(len(p), dtype=bool)
+    if k and size > 0:
+        near, clear = nearest_vertices(np.ascontiguousarray(p, dtype=np.float64),
+                                       np.ascontiguousarray(seg_a, dtype=np.float64), k, size,
+                                       NEAREST_TIE, NEAREST_RINGS)
+    if not clear.all():
+        from scipy.spatial import cKDTree
+
+        far = ~clear
+        near[far] = cKDTree(seg_a).query(p[far], k=k)[1].reshape(-1, k)
     return nearest_of_segments(p, np.ascontiguousarray(np.concatenate([near, prev[near]], axis=1)),
                                seg_a, seg_b)  # type: ignore[no-any-return]
 
@@ -226,7 +238,6 @@ def thinnest_gap(domain: Domain, grid: Background, corner_angle: float,
     width = GAP_WIDTHS * grid.spacing
     cos = math.cos(math.radians(corner_angle))
     arcs = _arc_positions(seg_a, seg_b, prev)
-    tree = cKDTree(seg_a)
     # First every pair of vertices closer than the width, with a little slack in each test: a
     # superset of the nearest neighbours' pairs below (each test is symmetric in v and u, so
     # one order of each pair is enough).  Where none of them is a gap (a domain thin only at a
@@ -234,19 +245,35 @@ def thinnest_gap(domain: Domain, grid: Background, corner_angle: float,
     # costs a fraction of the neighbour search.  A detailed outline (more than
     # GAP_FIRST_PASS_MAX vertices) is thin somewhere nearly always, and there the first pass
     # only added its own cost (0.23 s on the 20,000-vertex fixture): it goes straight to the
-    # search.  The answer is the same either way.
+    # search.  The answer is the same either way: the slack (1e-9, relative) is far above the
+    # rounding in which the compiled pass and the search may differ.
     slack = 1e-9
-    if len(seg_a) <= GAP_FIRST_PASS_MAX:
-        pairs = tree.query_pairs(width * (1.0 + slack), output_type="ndarray")
-        v, u = pairs[:, 0], pairs[:, 1]
-        if not len(_gaps(domain, seg_a, normal, arcs, v, u, np.hypot(*(seg_a[u] - seg_a[v]).T), width,
-                         cos, slack)):
-            return np.inf
+    if len(seg_a) <= GAP_FIRST_PASS_MAX and not _any_gap(domain, seg_a, normal, arcs, width, cos, slack):
+        return np.inf
     k = min(GAP_NEIGHBOURS, len(seg_a))
-    dist, idx = tree.query(seg_a, k=k)
+    dist, idx = cKDTree(seg_a).query(seg_a, k=k)
     v = np.repeat(np.arange(len(seg_a)), k)
     gap = _gaps(domain, seg_a, normal, arcs, v, idx.ravel(), dist.ravel(), width, cos, 0.0)
     return float(gap.min()) if len(gap) else np.inf
+
+
+def _any_gap(domain: Domain, seg_a: FloatArray, normal: FloatArray,
+             arcs: tuple[NDArray[np.intp], FloatArray, FloatArray], width: float, cos: float,
+             slack: float) -> bool:
+    """Whether some pair of vertices closer than ``width`` passes :func:`_gaps`'s tests, each
+    loosened by ``slack`` (relative): the pairs and their tests in one compiled pass
+    (:func:`~injmesh.kernels.feature.gap_pairs`; 1 ms on the paper's four-hole square, where
+    a k-d tree's pairs and the NumPy tests on them took 5), then the domain's d at the
+    midpoints of the few that pass."""
+    from ..kernels.feature import gap_pairs
+
+    loop, along, total = arcs
+    v, u = gap_pairs(np.ascontiguousarray(seg_a, dtype=np.float64),
+                     np.ascontiguousarray(normal, dtype=np.float64), np.ascontiguousarray(loop),
+                     np.ascontiguousarray(along, dtype=np.float64),
+                     np.ascontiguousarray(total, dtype=np.float64), float(width), float(cos), float(slack),
+                     float(GAP_DETOUR))
+    return bool(len(v)) and bool(np.any(domain.sdf(0.5 * (seg_a[u] + seg_a[v])) < 0))
 
 
 def _gaps(domain: Domain, seg_a: FloatArray, normal: FloatArray,
