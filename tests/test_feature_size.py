@@ -598,6 +598,78 @@ def test_gap_pairs_are_the_numpy_tests(seed: int, n: int, width: float, slack: f
     assert np.all(i < j)
 
 
+def _marks_reference(x, y, feet, inside, exact, spacing, jump, limit):
+    """The feature grid's medial-axis candidates and marks in NumPy (slices of the grid), as
+    ``feature_grid`` computed them before they were compiled."""
+    xy = np.stack(np.meshgrid(x, y), axis=-1)
+    ny, nx = inside.shape
+    pairs = [((slice(0, ny - dj), slice(max(0, -di), nx - max(0, di))),
+              (slice(dj, ny), slice(max(0, di), nx + min(0, di))))
+             for dj, di in ((0, 1), (1, 0), (1, 1), (1, -1))]
+    r0 = np.hypot(*(xy - feet).transpose(2, 0, 1))
+    cand = np.zeros(inside.shape, dtype=bool)
+    for sa, sb in pairs:
+        gap = np.hypot(*(feet[sa] - feet[sb]).transpose(2, 0, 1))
+        hit = inside[sa] & inside[sb] & (gap > np.maximum(jump * spacing, 0.5 * np.minimum(r0[sa], r0[sb])))
+        cand[sa] |= hit
+        cand[sb] |= hit
+    grown = cand.copy()
+    grown[1:, :] |= cand[:-1, :]
+    grown[:-1, :] |= cand[1:, :]
+    cand = grown.copy()
+    cand[:, 1:] |= grown[:, :-1]
+    cand[:, :-1] |= grown[:, 1:]
+    todo = cand & inside & ~exact
+    r = np.hypot(*(xy - feet).transpose(2, 0, 1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        unit = np.where((r > 0)[..., None], (xy - feet) / r[..., None], 0.0)
+    deep = inside & (r > 0.5 * spacing)
+    marked = np.zeros(inside.shape, dtype=bool)
+    axis = np.zeros(inside.shape + (2,))
+    for sa, sb in pairs:
+        hit = deep[sa] & deep[sb] & (np.einsum("...j,...j->...", unit[sa], unit[sb]) < limit)
+        marked[sa] |= hit
+        marked[sb] |= hit
+        step = xy[sb][hit] - xy[sa][hit]
+        grow_a = np.einsum("kj,kj->k", step, unit[sa][hit])
+        grow_b = -np.einsum("kj,kj->k", step, unit[sb][hit])
+        total = grow_a + grow_b
+        t = np.where(total > 0, (r[sb][hit] - r[sa][hit] + grow_b) / np.where(total > 0, total, 1.0), 0.5)
+        crossing = xy[sa][hit] + np.clip(t, 0.0, 1.0)[:, None] * step
+        for sl in (sa, sb):
+            view = axis[sl]
+            view[hit] = crossing
+            axis[sl] = view
+    return todo, marked, r, axis
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10**6), st.integers(2, 40), st.integers(2, 40), st.floats(0.0, 1.0))
+def test_medial_kernels_are_the_numpy_form(seed: int, ny: int, nx: int, snap: float) -> None:
+    """The compiled candidates and marks of the feature grid give the NumPy form's nodes,
+    distances and crossings bit for bit (random feet, some on the nodes themselves, some
+    snapped to a few points so that neighbours share them)."""
+    from injmesh.kernels.feature import medial_candidates, medial_marks
+
+    rng = np.random.default_rng(seed)
+    x = np.cumsum(np.full(nx, 0.1)) - 0.3
+    y = np.cumsum(np.full(ny, 0.1)) + 0.2
+    feet = rng.uniform(-0.5, 4.5, (ny, nx, 2))
+    few = rng.random((ny, nx)) < snap
+    feet[few] = np.round(feet[few])
+    on = rng.random((ny, nx)) < 0.05
+    gx, gy = np.meshgrid(x, y)
+    feet[on] = np.stack([gx[on], gy[on]], axis=1)
+    inside = rng.random((ny, nx)) < 0.8
+    exact = rng.random((ny, nx)) < 0.3
+    limit = -np.cos(np.radians(30.0))
+    todo_ref, marked_ref, r_ref, axis_ref = _marks_reference(x, y, feet, inside, exact, 0.1, 2.0, limit)
+    todo = medial_candidates(x, y, feet, inside, exact, 0.1, 2.0)
+    marked, r, axis = medial_marks(x, y, feet, inside, 0.1, limit)
+    assert np.array_equal(todo, todo_ref) and np.array_equal(marked, marked_ref)
+    assert np.array_equal(r, r_ref) and np.array_equal(axis, axis_ref)
+
+
 # --- plain signed distances: the traced boundary stands in for the exact one -----------------
 
 

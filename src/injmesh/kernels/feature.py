@@ -149,3 +149,110 @@ def nearest_vertices(p, v, k, size, rel, max_rings):  # type: ignore[no-untyped-
             near[q, s] = best_i[s]
         clear[q] = ok
     return near, clear
+
+
+#: The feature grid's neighbour pairs (a, b = a + (dj, di)): east, north, north-east, north-west.
+_PAIRS = ((0, 1), (1, 0), (1, 1), (1, -1))
+
+
+@nb.njit(cache=True)
+def medial_candidates(x, y, feet, inside, exact, spacing, jump):  # type: ignore[no-untyped-def]
+    """The nodes of the feature grid whose approximate nearest boundary points (``feet (ny, nx,
+    2)``) jump between neighbours, grown by one node (3 x 3), inside and not ``exact``
+    already: those ``sizing.features.feature_grid`` asks exact nearest points for.
+
+    A pair of inside neighbours jumps when its feet are farther apart than
+    ``max(jump * spacing, min(r_a, r_b) / 2)`` (r: distance from the node to its foot); the
+    same numbers as the NumPy form, node by node.
+    """
+    ny, nx = inside.shape
+    r = np.empty((ny, nx))
+    for j in range(ny):
+        for i in range(nx):
+            r[j, i] = math.hypot(x[i] - feet[j, i, 0], y[j] - feet[j, i, 1])
+    cand = np.zeros((ny, nx), dtype=np.bool_)
+    floor = jump * spacing
+    for dj, di in _PAIRS:
+        for j in range(0, ny - dj):
+            for i in range(max(0, -di), nx - max(0, di)):
+                jb, ib = j + dj, i + di
+                if not (inside[j, i] and inside[jb, ib]):
+                    continue
+                gap = math.hypot(feet[j, i, 0] - feet[jb, ib, 0], feet[j, i, 1] - feet[jb, ib, 1])
+                if gap > max(floor, 0.5 * min(r[j, i], r[jb, ib])):
+                    cand[j, i] = True
+                    cand[jb, ib] = True
+    todo = np.zeros((ny, nx), dtype=np.bool_)
+    for j in range(ny):
+        for i in range(nx):
+            if not inside[j, i] or exact[j, i]:
+                continue
+            hit = False
+            for jj in range(max(j - 1, 0), min(j + 2, ny)):
+                for ii in range(max(i - 1, 0), min(i + 2, nx)):
+                    hit = hit or cand[jj, ii]
+            todo[j, i] = hit
+    return todo
+
+
+@nb.njit(cache=True)
+def medial_marks(x, y, feet, inside, spacing, limit):  # type: ignore[no-untyped-def]
+    """The feature grid's medial-axis nodes, the distance r from each node to its foot, and
+    the point where the medial axis crosses each marked node's pair.
+
+    Two neighbours both farther than half a spacing from the boundary and inside mark each
+    other when their unit directions from their feet make a dot product below ``limit``; the
+    crossing of a marked pair is where the distances to the two walls (planes through the
+    feet) are equal, clamped to the pair, and a node keeps the crossing of the last of its
+    pairs in the NumPy form's order (direction by direction, the pairs' first nodes, then
+    their second).  The same numbers as the NumPy form, node by node.
+    """
+    ny, nx = inside.shape
+    r = np.empty((ny, nx))
+    ux = np.zeros((ny, nx))
+    uy = np.zeros((ny, nx))
+    deep = np.zeros((ny, nx), dtype=np.bool_)
+    half = 0.5 * spacing
+    for j in range(ny):
+        for i in range(nx):
+            ex, ey = x[i] - feet[j, i, 0], y[j] - feet[j, i, 1]
+            rr = math.hypot(ex, ey)
+            r[j, i] = rr
+            if rr > 0:
+                ux[j, i], uy[j, i] = ex / rr, ey / rr
+            deep[j, i] = inside[j, i] and rr > half
+    marked = np.zeros((ny, nx), dtype=np.bool_)
+    axis = np.zeros((ny, nx, 2))
+    cross = np.zeros((ny, nx, 2))
+    hit = np.zeros((ny, nx), dtype=np.bool_)
+    for dj, di in _PAIRS:
+        i0, i1 = max(0, -di), nx - max(0, di)
+        for j in range(0, ny - dj):
+            for i in range(i0, i1):
+                jb, ib = j + dj, i + di
+                hit[j, i] = False
+                if not (deep[j, i] and deep[jb, ib]):
+                    continue
+                if not (ux[j, i] * ux[jb, ib] + uy[j, i] * uy[jb, ib] < limit):
+                    continue
+                hit[j, i] = True
+                marked[j, i] = True
+                marked[jb, ib] = True
+                sx, sy = x[ib] - x[i], y[jb] - y[j]
+                grow_a = sx * ux[j, i] + sy * uy[j, i]
+                grow_b = -(sx * ux[jb, ib] + sy * uy[jb, ib])
+                total = grow_a + grow_b
+                t = (r[jb, ib] - r[j, i] + grow_b) / total if total > 0 else 0.5
+                t = min(max(t, 0.0), 1.0)
+                cross[j, i, 0] = x[i] + t * sx
+                cross[j, i, 1] = y[j] + t * sy
+        # The pairs' first nodes take their crossings, then the second nodes theirs.
+        for j in range(0, ny - dj):
+            for i in range(i0, i1):
+                if hit[j, i]:
+                    axis[j, i, 0], axis[j, i, 1] = cross[j, i, 0], cross[j, i, 1]
+        for j in range(0, ny - dj):
+            for i in range(i0, i1):
+                if hit[j, i]:
+                    axis[j + dj, i + di, 0], axis[j + dj, i + di, 1] = cross[j, i, 0], cross[j, i, 1]
+    return marked, r, axis
