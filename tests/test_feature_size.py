@@ -540,7 +540,8 @@ def test_nearest_vertices_are_exact(seed: int, n: int, m: int, layout: str, cell
     p = np.concatenate([p, v[: min(n, 10)]])  # points on vertices: distance zero
     k = min(3, n)
     size = cell * float(np.ptp(v, axis=0).max() + 1e-3) / 20
-    near, clear = nearest_vertices(p, v, k, size, NEAREST_TIE, NEAREST_RINGS)
+    near, status = nearest_vertices(p, v, k, size, NEAREST_TIE, NEAREST_RINGS)
+    clear = status == 0
     d2 = ((p[:, None, :] - v[None, :, :]) ** 2).sum(axis=2)
     order = np.argsort(d2, axis=1, kind="stable")[:, :k]
     assert np.array_equal(near[clear], order[clear])

@@ -75,20 +75,21 @@ def nearest_vertices(p, v, k, size, rel, max_rings):  # type: ignore[no-untyped-
 
     Cells ``size`` wide are searched in square rings round the point's cell until the k-th
     squared distance found is at most that of the ring's inner edge, so the answer is exact
-    (``k <= n``).  Where two of the k + 1 nearest squared distances are within ``rel``
-    (relative) of each other the order may hinge on rounding, and a point farther than
-    ``max_rings`` rings from its k + 1 nearest would cost more here than in a tree: ``clear``
-    is False there (the caller asks a k-d tree for those points).
+    (``k <= n``).
 
-    Returns ``near (m, k)`` int64 and ``clear (m,)`` bool.
+    Returns ``near (m, k)`` int64 and ``status (m,)`` int8: 0 where ``near`` is the answer;
+    1 where two of the k + 1 nearest squared distances are within ``rel`` (relative) of each
+    other, so that their order may hinge on rounding; 2 where the point is farther than
+    ``max_rings`` rings from its k + 1 nearest (it would cost more here than in a tree).  The
+    caller asks a k-d tree for the last two.
     """
     m = p.shape[0]
     n = v.shape[0]
     kq = min(k + 1, n)
     near = np.zeros((m, k), dtype=np.int64)
-    clear = np.zeros(m, dtype=np.bool_)
+    status = np.full(m, 2, dtype=np.int8)
     if m == 0 or n == 0 or k > n or not size > 0.0:
-        return near, clear
+        return near, status
     cell, order, first, nx, ny = _cells(v, size)
     x0, y0 = v[:, 0].min(), v[:, 1].min()
     best_d = np.empty(kq)
@@ -141,14 +142,15 @@ def nearest_vertices(p, v, k, size, rel, max_rings):  # type: ignore[no-untyped-
                 done = True
                 break
             ring += 1
-        ok = done and found == kq
+        if not (done and found == kq):
+            continue
+        status[q] = 0
         for s in range(kq - 1):
             if best_d[s + 1] - best_d[s] <= rel * best_d[s + 1]:
-                ok = False
+                status[q] = 1
         for s in range(k):
             near[q, s] = best_i[s]
-        clear[q] = ok
-    return near, clear
+    return near, status
 
 
 #: The feature grid's neighbour pairs (a, b = a + (dj, di)): east, north, north-east, north-west.
