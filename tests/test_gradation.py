@@ -178,3 +178,41 @@ def test_kernel_invariants_on_random_grids(ny: int, nx: int, rate: float, seed: 
     g = GriddedSize(np.arange(nx + 1) * dx, np.arange(ny + 1) * dy, np.pad(h, ((0, 1), (0, 1)), mode="edge"))
     assert upwind_gradient(g)[:ny, :nx].max() <= rate * (1 + 1e-9)
     assert np.array_equal(limit_gradient(h, dx, dy, rate), h)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(0.0, 10.0), st.floats(0.0, 1.0), st.floats(1e-4, 1.0), st.floats(-1e-6, 1e-6),
+       st.sampled_from([0.0, 1e-300, 1e-12, 1e-9, 1e-7]), st.booleans())
+def test_first_pass_shortcut_claims_only_true_answers(a: float, db: float, g: float, rel: float,
+                                                      nudge: float, swap: bool) -> None:
+    """``_not_below(a, b, c)`` (the limiter's first-pass test without divisions) is True only
+    where the update it stands for, computed as the kernel computes it, is at least c: tried
+    at sizes c within a hair of that update (the knife edge of a size whose slope is exactly
+    the rate), both sides."""
+    from injmesh.kernels.fastmarch import _not_below, _update
+
+    b = a + db * g
+    if swap:
+        a, b = b, a
+    u = _update(a, b, g, g)
+    for c in (u * (1.0 + rel), u * (1.0 - nudge), u * (1.0 + nudge), u, max(a, b), np.nextafter(u, np.inf),
+              np.nextafter(u, 0.0)):
+        if _not_below(a, b, c, g, g):
+            assert _update(a, b, g, g) >= c
+
+
+def test_first_pass_shortcut_leaves_the_limit_unchanged() -> None:
+    """A cone of slope exactly the rate (every node on the knife edge of the first pass's test)
+    and a steeper one: the limited sizes still satisfy the limit and equal h0 where it holds."""
+    from injmesh.kernels.fastmarch import limit_gradient
+
+    y, x = np.mgrid[0:120, 0:130] * 0.01
+    for slope, rate in [(0.2, 0.2), (0.5, 0.2), (0.1, 0.3)]:
+        h0 = 0.04 + slope * np.hypot(x - 0.7, y - 0.3)
+        h0[:10, :10] = np.inf
+        out = limit_gradient(h0, 0.01, 0.01, rate)
+        assert np.all(out <= h0)
+        assert np.all(np.abs(np.diff(out, axis=0)) <= rate * 0.01 * (1 + 1e-9))
+        assert np.all(np.abs(np.diff(out, axis=1)) <= rate * 0.01 * (1 + 1e-9))
+        if slope < rate:
+            assert np.array_equal(out[10:, 10:], h0[10:, 10:])

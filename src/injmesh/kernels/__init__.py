@@ -24,6 +24,9 @@ its algorithm (no NumPy twin) and is deterministic: same inputs, bit-identical o
   an exact boundary.
 * :mod:`injmesh.kernels.gaps` -- the thinnest chord from each vertex of a region's wall to a
   facing wall (the regions' feature size).
+* :mod:`injmesh.kernels.feature` -- the feature size's searches over boundary polylines: the
+  k nearest vertices of the grid nodes (exact, on a grid of cells) and the vertex pairs across a
+  possible gap.
 
 Every kernel is ``@njit(cache=True)``: the first call compiles (tens of seconds for the whole
 Delaunay module on a cold cache) and later processes load the machine code from

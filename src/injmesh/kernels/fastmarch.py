@@ -95,8 +95,9 @@ def _update(a: float, b: float, gx: float, gy: float) -> float:
 
 
 @numba.njit(cache=True, inline="always")
-def _known_update(key: np.ndarray, pos: np.ndarray, nb: int, nx: int, ny: int, gx: float, gy: float) -> float:
-    """The eikonal update of node ``nb`` from its neighbours that are not tentative (in the heap)."""
+def _known_pair(key: np.ndarray, pos: np.ndarray, nb: int, nx: int, ny: int) -> tuple[float, float]:
+    """The smallest x-neighbour and y-neighbour of node ``nb`` that are not tentative (in the
+    heap); ``inf`` where there is none."""
     bj = nb // nx
     bi = nb - bj * nx
     a = np.inf
@@ -109,7 +110,52 @@ def _known_update(key: np.ndarray, pos: np.ndarray, nb: int, nx: int, ny: int, g
         b = key[nb - nx]
     if bj < ny - 1 and pos[nb + nx] < 0:
         b = min(b, key[nb + nx])
+    return a, b
+
+
+@numba.njit(cache=True, inline="always")
+def _known_update(key: np.ndarray, pos: np.ndarray, nb: int, nx: int, ny: int, gx: float, gy: float) -> float:
+    """The eikonal update of node ``nb`` from its neighbours that are not tentative (in the heap)."""
+    a, b = _known_pair(key, pos, nb, nx, ny)
     return _update(a, b, gx, gy)
+
+
+#: :func:`_not_below` trusts its test when ``F(c) <= g^2 (1 - NOT_BELOW)`` and ``g > NOT_BELOW_G * c``.
+NOT_BELOW = 1e-9
+NOT_BELOW_G = 1e-4
+
+
+@numba.njit(cache=True, inline="always")
+def _not_below(a: float, b: float, c: float, gx: float, gy: float) -> bool:
+    """True only if ``_update(a, b, gx, gy) >= c`` (computed as it computes it): a test with no
+    division or square root, for the first pass of :func:`limit_gradient`, where nearly every
+    node of a size that needs no limiting keeps its value.  False means "compute it".
+
+    With ``u1 = min(a + gx, b + gy)`` (the one-sided update, computed as ``_update`` does):
+    if ``u1 < c`` nothing is claimed.  If ``u1 <= max(a, b)``, ``_update`` returns u1 itself.
+    Otherwise it returns ``min(lo + v, u1)`` with ``lo + v`` the computed root U >= max(a, b)
+    of ``F(u) = (u - a)^2 + (u - b)^2 = g^2`` (here ``gx == gy == g``; the test is left out
+    otherwise).  For ``c >= max(a, b)``, F is convex and increasing on ``[c, U]`` with
+    ``F'(U) = 2 ((U - a) + (U - b)) <= 2 sqrt(2) g``, so ``F(c) <= g^2 (1 - eps)`` gives
+    ``U - c >= eps g / (2 sqrt 2)``: 3.5e-10 g with eps = NOT_BELOW (less the few ulps of the
+    computed F).  In this branch ``0 <= |a - b| < g``, the discriminant is at least ``4 / g^2``
+    and ``v = (g / 2) (d + sqrt(2 - d^2))``, d in [0, 1), is computed within about 12 ulps of
+    g; ``lo + v`` adds an ulp of c.  With ``g > NOT_BELOW_G * c`` these errors (below
+    3e-15 g + 3e-16 c < 1e-11 g) are far inside the margin, so the computed ``lo + v`` is
+    above c too.
+    """
+    if not (gx == gy and c < np.inf):
+        return False
+    u1 = min(a + gx, b + gy)
+    if not u1 >= c:
+        return False
+    hi = max(a, b)
+    if u1 <= hi:
+        return True
+    if not (c >= hi and gx > NOT_BELOW_G * c):
+        return False
+    f = (c - a) * (c - a) + (c - b) * (c - b)
+    return f <= gx * gx * (1.0 - NOT_BELOW)
 
 
 @numba.njit(cache=True)
@@ -117,7 +163,8 @@ def limit_gradient(h0: np.ndarray, dx: float, dy: float, rate: float) -> np.ndar
     """The largest ``h <= h0`` on the grid with upwind |grad h| <= ``rate`` (see module docstring).
 
     Only nodes that get lowered ever enter the heap: a first pass finds the nodes whose h0
-    exceeds the update from their neighbours' h0, and marching spreads from them.  A node never
+    exceeds the update from their neighbours' h0 (most nodes are settled by :func:`_not_below`,
+    without the update's divisions and square root), and marching spreads from them.  A node never
     lowered keeps its h0, which is final; updates read every neighbour that is not tentative
     (accepted, or untouched at its h0, an upper bound until it is lowered and accepted itself,
     which triggers a new update).  A smooth h0 that nearly satisfies the limit costs one pass.
@@ -141,7 +188,11 @@ def limit_gradient(h0: np.ndarray, dx: float, dy: float, rate: float) -> np.ndar
     gy = rate * dy
     size = 0
     for node in range(n):
-        u = _known_update(flat0, pos, node, nx, ny, gx, gy)
+        # Most nodes of a size that needs no limiting keep it: a cheap test first.
+        a, b = _known_pair(flat0, pos, node, nx, ny)
+        if _not_below(a, b, key[node], gx, gy):
+            continue
+        u = _update(a, b, gx, gy)
         if u < key[node]:
             key[node] = u
             heap[size] = node

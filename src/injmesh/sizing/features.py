@@ -73,6 +73,12 @@ FloatArray = NDArray[np.float64]
 FEATURE_CELLS = 256
 #: Nearest boundary vertices examined per node (with their two segments each).
 NEAREST_VERTICES = 3
+#: :func:`_nearest_on_boundary`'s compiled search gives up beyond this many rings of cells
+#: (a k-d tree answers those points), and leaves to the default k-d tree the points where two
+#: of the nearest squared distances are this close (relative): their order may hinge on
+#: rounding.
+NEAREST_RINGS = 6
+NEAREST_TIE = 1e-12
 #: Boundary vertices examined around each vertex when looking for a facing wall across a gap,
 #: gaps narrower than GAP_WIDTHS grid spacings that refine the grid, and the largest refinement.
 GAP_NEIGHBOURS = 24
@@ -178,24 +184,45 @@ def _nearest_on_boundary(
     Segment ``k`` runs from vertex ``k`` (``seg_a[k]``) to the next one; the candidates are the
     two segments at each of the ``NEAREST_VERTICES`` nearest vertices.
     """
-    from scipy.spatial import cKDTree
-
-    k = min(NEAREST_VERTICES, len(seg_a))
-    # Points deep inside are many times farther from the boundary than its vertices are apart.
-    # A tree whose cells are left as the splits make them (not shrunk to their points) answers
-    # such queries 5-8 times faster than the default one (1.3 -> 0.2 s for the 80,000
-    # medial-axis candidates of a 20,000-vertex outline).  The k nearest are the same when
-    # their distances and the next one's are all different; equidistant vertices (grid-aligned
-    # walls) come in an order that depends on the tree, so those few points ask the default
-    # tree, as before: the same nearest points either way.
-    kq = min(k + 1, len(seg_a))
-    dist_k, near = cKDTree(seg_a, balanced_tree=False, compact_nodes=False).query(p, k=kq)
-    dist_k, near = dist_k.reshape(len(p), kq), near.reshape(len(p), kq)[:, :k]
-    tied = np.any(dist_k[:, 1:] == dist_k[:, :-1], axis=1)
-    if tied.any():
-        near[tied] = cKDTree(seg_a).query(p[tied], k=k)[1].reshape(-1, k)
+    from ..kernels.feature import nearest_vertices
     from ..kernels.outline import nearest_of_segments
 
+    k = min(NEAREST_VERTICES, len(seg_a))
+    # The k nearest vertices, exactly, from a compiled search over a grid of cells about two
+    # vertices' share of the box wide (the 7,000 medial-axis candidates of the paper's
+    # four-hole square: 4 ms, where a k-d tree took 9).  Where two of the k + 1 nearest
+    # distances are (nearly) equal, equidistant vertices (grid-aligned walls) come in an order
+    # that depends on the search: those points ask the default k-d tree, as they always have
+    # (where the distances differ, every exact search gives the same vertices in the same
+    # order, so these get the same nearest points either way).
+    extent = np.ptp(seg_a, axis=0) if len(seg_a) else np.zeros(2)
+    size = max(2.0 * math.sqrt(float(extent[0] * extent[1]) / max(len(seg_a), 1)),
+               float(extent.max()) / max(len(seg_a), 1))
+    near = np.zeros((len(p), k), dtype=np.int64)
+    status = np.full(len(p), 2, dtype=np.int8)
+    if k and size > 0:
+        near, status = nearest_vertices(np.ascontiguousarray(p, dtype=np.float64),
+                                        np.ascontiguousarray(seg_a, dtype=np.float64), k, size,
+                                        NEAREST_TIE, NEAREST_RINGS)
+    if np.any(status != 0):
+        from scipy.spatial import cKDTree
+
+        far = status == 2
+        if far.any():
+            # Points farther than NEAREST_RINGS cells from their vertices (deep inside a
+            # detailed outline).  A tree whose cells are left as the splits make them (not
+            # shrunk to their points) answers such queries 5-8 times faster than the default
+            # one (1.3 -> 0.2 s for the 80,000 medial-axis candidates of a 20,000-vertex
+            # outline); the points it finds ties for join those of the search.
+            q = p[far]
+            kq = min(k + 1, len(seg_a))
+            dist_k, near_q = cKDTree(seg_a, balanced_tree=False, compact_nodes=False).query(q, k=kq)
+            dist_k, near_q = dist_k.reshape(len(q), kq), near_q.reshape(len(q), kq)[:, :k]
+            near[far] = near_q
+            status[np.flatnonzero(far)[np.any(dist_k[:, 1:] == dist_k[:, :-1], axis=1)]] = 1
+        tied = status == 1
+        if tied.any():
+            near[tied] = cKDTree(seg_a).query(p[tied], k=k)[1].reshape(-1, k)
     return nearest_of_segments(p, np.ascontiguousarray(np.concatenate([near, prev[near]], axis=1)),
                                seg_a, seg_b)  # type: ignore[no-any-return]
 
@@ -226,7 +253,6 @@ def thinnest_gap(domain: Domain, grid: Background, corner_angle: float,
     width = GAP_WIDTHS * grid.spacing
     cos = math.cos(math.radians(corner_angle))
     arcs = _arc_positions(seg_a, seg_b, prev)
-    tree = cKDTree(seg_a)
     # First every pair of vertices closer than the width, with a little slack in each test: a
     # superset of the nearest neighbours' pairs below (each test is symmetric in v and u, so
     # one order of each pair is enough).  Where none of them is a gap (a domain thin only at a
@@ -234,19 +260,35 @@ def thinnest_gap(domain: Domain, grid: Background, corner_angle: float,
     # costs a fraction of the neighbour search.  A detailed outline (more than
     # GAP_FIRST_PASS_MAX vertices) is thin somewhere nearly always, and there the first pass
     # only added its own cost (0.23 s on the 20,000-vertex fixture): it goes straight to the
-    # search.  The answer is the same either way.
+    # search.  The answer is the same either way: the slack (1e-9, relative) is far above the
+    # rounding in which the compiled pass and the search may differ.
     slack = 1e-9
-    if len(seg_a) <= GAP_FIRST_PASS_MAX:
-        pairs = tree.query_pairs(width * (1.0 + slack), output_type="ndarray")
-        v, u = pairs[:, 0], pairs[:, 1]
-        if not len(_gaps(domain, seg_a, normal, arcs, v, u, np.hypot(*(seg_a[u] - seg_a[v]).T), width,
-                         cos, slack)):
-            return np.inf
+    if len(seg_a) <= GAP_FIRST_PASS_MAX and not _any_gap(domain, seg_a, normal, arcs, width, cos, slack):
+        return np.inf
     k = min(GAP_NEIGHBOURS, len(seg_a))
-    dist, idx = tree.query(seg_a, k=k)
+    dist, idx = cKDTree(seg_a).query(seg_a, k=k)
     v = np.repeat(np.arange(len(seg_a)), k)
     gap = _gaps(domain, seg_a, normal, arcs, v, idx.ravel(), dist.ravel(), width, cos, 0.0)
     return float(gap.min()) if len(gap) else np.inf
+
+
+def _any_gap(domain: Domain, seg_a: FloatArray, normal: FloatArray,
+             arcs: tuple[NDArray[np.intp], FloatArray, FloatArray], width: float, cos: float,
+             slack: float) -> bool:
+    """Whether some pair of vertices closer than ``width`` passes :func:`_gaps`'s tests, each
+    loosened by ``slack`` (relative): the pairs and their tests in one compiled pass
+    (:func:`~injmesh.kernels.feature.gap_pairs`; 1 ms on the paper's four-hole square, where
+    a k-d tree's pairs and the NumPy tests on them took 5), then the domain's d at the
+    midpoints of the few that pass."""
+    from ..kernels.feature import gap_pairs
+
+    loop, along, total = arcs
+    v, u = gap_pairs(np.ascontiguousarray(seg_a, dtype=np.float64),
+                     np.ascontiguousarray(normal, dtype=np.float64), np.ascontiguousarray(loop),
+                     np.ascontiguousarray(along, dtype=np.float64),
+                     np.ascontiguousarray(total, dtype=np.float64), float(width), float(cos), float(slack),
+                     float(GAP_DETOUR))
+    return bool(len(v)) and bool(np.any(domain.sdf(0.5 * (seg_a[u] + seg_a[v])) < 0))
 
 
 def _gaps(domain: Domain, seg_a: FloatArray, normal: FloatArray,
@@ -491,6 +533,8 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
     ``boundary``: :func:`_boundary` of this grid, when the caller has it."""
     from scipy import ndimage
 
+    from ..kernels.feature import medial_candidates, medial_marks
+
     inside = grid.inside
     band = grid.band
     near = inside | band
@@ -510,84 +554,33 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
     feet = np.zeros(shape + (2,))
     feet[seeds] = _nearest_on_boundary(grid.nodes(seeds), seg_a, seg_b, prev)[1]
     _, (jj, ii) = ndimage.distance_transform_edt(~seeds, return_indices=True)
-    feet = feet[jj, ii]
-    xy = np.stack(np.meshgrid(grid.x, grid.y), axis=-1)
-    ny, nx = shape
-    # Neighbour pairs (a, b) as two slices of the grid: east, north, north-east, north-west.
-    pairs = [
-        (
-            (slice(0, ny - dj), slice(max(0, -di), nx - max(0, di))),
-            (slice(dj, ny), slice(max(0, di), nx + min(0, di))),
-        )
-        for dj, di in ((0, 1), (1, 0), (1, 1), (1, -1))
-    ]
-
-    def facing(limit: float) -> tuple[NDArray[np.bool_], FloatArray, FloatArray, list[NDArray[np.bool_]]]:
-        """Distances, unit directions from the walls, and the node pairs facing within ``limit``."""
-        r = np.hypot(*(xy - feet).transpose(2, 0, 1))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            unit = np.where((r > 0)[..., None], (xy - feet) / r[..., None], 0.0)
-        # Nodes closer to the boundary than half a spacing are left out: on the boundary itself
-        # the direction to the polyline's nearest point is arbitrary (a node on a circle lies
-        # outside its chords), and no medial axis the grid resolves passes that close to a wall.
-        deep = inside & (r > 0.5 * grid.spacing)
-        hits = [
-            deep[sa] & deep[sb] & (np.einsum("...j,...j->...", unit[sa], unit[sb]) < limit)
-            for sa, sb in pairs
-        ]
-        marked = np.zeros(shape, dtype=bool)
-        for (sa, sb), hit in zip(pairs, hits, strict=True):
-            marked[sa] |= hit
-            marked[sb] |= hit
-        return marked, r, unit, hits
-
+    feet = np.ascontiguousarray(feet[jj, ii])
+    x, y = grid.x, grid.y
     # Candidates: where the approximate nearest point jumps between neighbours (near the medial
     # axis the nearest seed may lie on any of the walls at about the same distance, so the
     # approximate direction is not to be trusted there), grown by one node.
     # The jump that counts grows with the distance to the wall (half of it): inside a convex
     # wall the nearest points of neighbours spread out by spacing * R / (R - r) anyway, while
     # across the medial axis they jump from one wall to the other, about 2 r apart.
-    r_approx = np.hypot(*(xy - feet).transpose(2, 0, 1))
-    candidates = np.zeros(shape, dtype=bool)
-    for sa, sb in pairs:
-        gap = np.hypot(*(feet[sa] - feet[sb]).transpose(2, 0, 1))
-        enough = np.maximum(CANDIDATE_JUMP * grid.spacing, 0.5 * np.minimum(r_approx[sa], r_approx[sb]))
-        jump = inside[sa] & inside[sb] & (gap > enough)
-        candidates[sa] |= jump
-        candidates[sb] |= jump
-    grown = candidates.copy()
-    grown[1:, :] |= candidates[:-1, :]
-    grown[:-1, :] |= candidates[1:, :]
-    candidates = grown.copy()
-    candidates[:, 1:] |= grown[:, :-1]
-    candidates[:, :-1] |= grown[:, 1:]
-    todo = candidates & inside & ~exact
+    todo = medial_candidates(x, y, feet, inside, exact, float(grid.spacing), float(CANDIDATE_JUMP))
     if todo.any():
-        feet[todo] = _nearest_on_boundary(xy[todo], seg_a, seg_b, prev)[1]
-    medial, r, unit, hits = facing(-math.cos(math.radians(corner_angle)))
-    axis_point = np.zeros(shape + (2,))  # where the medial axis crosses a marked node's pair
-    for (sa, sb), hit in zip(pairs, hits, strict=True):
-        if not hit.any():
-            continue
-        # The crossing x_a + t (x_b - x_a) is where the distances to the two walls (planes
-        # through the nearest points, normals n_a and n_b) are equal.
-        na, nb = unit[sa][hit], unit[sb][hit]
-        step = xy[sb][hit] - xy[sa][hit]
-        ra, rb = r[sa][hit], r[sb][hit]
-        grow_a = np.einsum("kj,kj->k", step, na)
-        grow_b = -np.einsum("kj,kj->k", step, nb)
-        total = grow_a + grow_b
-        t = np.where(total > 0, (rb - ra + grow_b) / np.where(total > 0, total, 1.0), 0.5)
-        crossing = xy[sa][hit] + np.clip(t, 0.0, 1.0)[:, None] * step
-        for sl in (sa, sb):
-            view = axis_point[sl]
-            view[hit] = crossing
-            axis_point[sl] = view
+        feet[todo] = _nearest_on_boundary(grid.nodes(todo), seg_a, seg_b, prev)[1]
+    # Neighbours (8-neighbourhood) whose directions from their nearest points are roughly
+    # opposite straddle the medial axis; both are marked, with the point where the axis crosses
+    # their pair: where the distances to the two walls (planes through the nearest points,
+    # normals n_a and n_b) are equal.  Nodes closer to the boundary than half a spacing are
+    # left out: on the boundary itself the direction to the polyline's nearest point is
+    # arbitrary (a node on a circle lies outside its chords), and no medial axis the grid
+    # resolves passes that close to a wall.  (Both compiled: the NumPy form's slices of the
+    # grid cost 7 ms on the paper's four-hole square.)
+    medial, r, axis_point = medial_marks(x, y, feet, inside, float(grid.spacing),
+                                         -math.cos(math.radians(corner_angle)))
     fs = np.full(shape, np.inf)
     if medial.any():
         # d_MA: distance to the crossing recorded at the nearest marked node.
         _, (mj, mi) = ndimage.distance_transform_edt(~medial, return_indices=True)
-        d_ma = np.hypot(*(xy - axis_point[mj, mi]).transpose(2, 0, 1))
+        at = axis_point[mj, mi]
+        d_ma = np.hypot(x[None, :] - at[..., 0], y[:, None] - at[..., 1])
         # Outside (the band) r counts negatively: the formula continues linearly through the
         # wall instead of folding back up, so interpolation at the wall gives the width.
         fs[near] = 2.0 * (np.where(inside[near], r[near], -r[near]) + d_ma[near])

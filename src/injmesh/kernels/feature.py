@@ -1,0 +1,260 @@
+"""Loops of the feature size (:mod:`injmesh.sizing.features`) over boundary polylines.
+
+* :func:`gap_pairs` -- the vertex pairs across a possible gap, :func:`thinnest_gap`'s quick
+  first pass (:func:`injmesh.sizing.features.thinnest_gap`).
+* :func:`nearest_vertices` -- the k nearest boundary vertices of many points, exactly (the
+  feature grid's nearest boundary points).
+
+Both bucket the vertices in a uniform grid of cells (:func:`injmesh.kernels.outline._cells`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from .outline import _cells
+
+
+@nb.njit(cache=True)
+def gap_pairs(v, normal, loop, along, total, width, cos, slack, detour):  # type: ignore[no-untyped-def]
+    """Vertex pairs ``i < j`` that may bound a gap: the tests of ``sizing.features._gaps``,
+    each loosened by ``slack``, in one pass over the vertices within the width of each other.
+
+    Kept when ``0 < dist < width (1 + slack)`` (``dist = hypot(v_j - v_i)``), the unit
+    direction e from i to j has ``e . normal_i > cos - slack`` and ``-e . normal_j > cos -
+    slack``, and the boundary between them (along one loop, the shorter way round; infinite
+    across loops) is longer than ``detour * dist * (1 - slack)``.  Returns the rows i and j.
+    """
+    n = v.shape[0]
+    out_i = np.empty(16, dtype=np.int64)
+    out_j = np.empty(16, dtype=np.int64)
+    m = 0
+    reach = width * (1.0 + slack)
+    if n < 2 or not reach > 0.0:
+        return out_i[:0].copy(), out_j[:0].copy()
+    cell, order, first, nx, ny = _cells(v, reach)
+    for i in range(n):
+        cx, cy = cell[i] % nx, cell[i] // nx
+        for gy in range(max(cy - 1, 0), min(cy + 2, ny)):
+            for gx in range(max(cx - 1, 0), min(cx + 2, nx)):
+                c = gy * nx + gx
+                for kk in range(first[c], first[c + 1]):
+                    j = order[kk]
+                    if j <= i:
+                        continue
+                    dx, dy = v[j, 0] - v[i, 0], v[j, 1] - v[i, 1]
+                    dist = math.hypot(dx, dy)
+                    if not (dist > 0.0 and dist < reach):
+                        continue
+                    ex, ey = dx / dist, dy / dist
+                    if not (ex * normal[i, 0] + ey * normal[i, 1] > cos - slack):
+                        continue
+                    if not (-(ex * normal[j, 0] + ey * normal[j, 1]) > cos - slack):
+                        continue
+                    arc = np.inf
+                    if loop[i] == loop[j]:
+                        arc = abs(along[j] - along[i])
+                        arc = min(arc, total[i] - arc)
+                    if not (arc > detour * dist * (1.0 - slack)):
+                        continue
+                    if m == out_i.shape[0]:
+                        out_i = np.concatenate((out_i, np.empty(m, dtype=np.int64)))
+                        out_j = np.concatenate((out_j, np.empty(m, dtype=np.int64)))
+                    out_i[m] = i
+                    out_j[m] = j
+                    m += 1
+    return out_i[:m].copy(), out_j[:m].copy()
+
+
+@nb.njit(cache=True)
+def nearest_vertices(p, v, k, size, rel, max_rings):  # type: ignore[no-untyped-def]
+    """The ``k`` nearest of the points ``v (n, 2)`` to each point of ``p (m, 2)``, nearest first.
+
+    Cells ``size`` wide are searched in square rings round the point's cell until the k-th
+    squared distance found is at most that of the ring's inner edge, so the answer is exact
+    (``k <= n``).
+
+    Returns ``near (m, k)`` int64 and ``status (m,)`` int8: 0 where ``near`` is the answer;
+    1 where two of the k + 1 nearest squared distances are within ``rel`` (relative) of each
+    other, so that their order may hinge on rounding; 2 where the point is farther than
+    ``max_rings`` rings from its k + 1 nearest (it would cost more here than in a tree).  The
+    caller asks a k-d tree for the last two.
+    """
+    m = p.shape[0]
+    n = v.shape[0]
+    kq = min(k + 1, n)
+    near = np.zeros((m, k), dtype=np.int64)
+    status = np.full(m, 2, dtype=np.int8)
+    if m == 0 or n == 0 or k > n or not size > 0.0:
+        return near, status
+    cell, order, first, nx, ny = _cells(v, size)
+    x0, y0 = v[:, 0].min(), v[:, 1].min()
+    best_d = np.empty(kq)
+    best_i = np.empty(kq, dtype=np.int64)
+    for q in range(m):
+        px, py = p[q, 0], p[q, 1]
+        cx = int(math.floor((px - x0) / size))
+        cy = int(math.floor((py - y0) / size))
+        # Rings beyond this one hold no cell of the grid.
+        last = max(max(cx, nx - 1 - cx), max(cy, ny - 1 - cy))
+        found = 0
+        ring = 0
+        done = False
+        while True:
+            if ring > last:
+                done = True  # every cell searched
+                break
+            if ring > max_rings:
+                break
+            for gy in range(cy - ring, cy + ring + 1):
+                if gy < 0 or gy >= ny:
+                    continue
+                edge = gy == cy - ring or gy == cy + ring
+                step = 1 if edge else 2 * ring
+                gx = cx - ring
+                while gx <= cx + ring:
+                    if 0 <= gx < nx:
+                        c = gy * nx + gx
+                        for kk in range(first[c], first[c + 1]):
+                            j = order[kk]
+                            dx, dy = v[j, 0] - px, v[j, 1] - py
+                            d2 = dx * dx + dy * dy
+                            if found == kq and d2 >= best_d[kq - 1]:
+                                continue
+                            # Insert in order (ties: the earlier found first).
+                            s = found if found < kq else kq - 1
+                            while s > 0 and best_d[s - 1] > d2:
+                                best_d[s] = best_d[s - 1]
+                                best_i[s] = best_i[s - 1]
+                                s -= 1
+                            best_d[s] = d2
+                            best_i[s] = j
+                            if found < kq:
+                                found += 1
+                    gx += step
+            # Every cell of the next ring is at least ``ring * size`` from the point (less a
+            # margin for the rounding of the cells' bounds).
+            reach = ring * size * (1.0 - 1e-9)
+            if found == kq and best_d[kq - 1] <= reach * reach:
+                done = True
+                break
+            ring += 1
+        if not (done and found == kq):
+            continue
+        status[q] = 0
+        for s in range(kq - 1):
+            if best_d[s + 1] - best_d[s] <= rel * best_d[s + 1]:
+                status[q] = 1
+        for s in range(k):
+            near[q, s] = best_i[s]
+    return near, status
+
+
+#: The feature grid's neighbour pairs (a, b = a + (dj, di)): east, north, north-east, north-west.
+_PAIRS = ((0, 1), (1, 0), (1, 1), (1, -1))
+
+
+@nb.njit(cache=True)
+def medial_candidates(x, y, feet, inside, exact, spacing, jump):  # type: ignore[no-untyped-def]
+    """The nodes of the feature grid whose approximate nearest boundary points (``feet (ny, nx,
+    2)``) jump between neighbours, grown by one node (3 x 3), inside and not ``exact``
+    already: those ``sizing.features.feature_grid`` asks exact nearest points for.
+
+    A pair of inside neighbours jumps when its feet are farther apart than
+    ``max(jump * spacing, min(r_a, r_b) / 2)`` (r: distance from the node to its foot); the
+    same numbers as the NumPy form, node by node.
+    """
+    ny, nx = inside.shape
+    r = np.empty((ny, nx))
+    for j in range(ny):
+        for i in range(nx):
+            r[j, i] = math.hypot(x[i] - feet[j, i, 0], y[j] - feet[j, i, 1])
+    cand = np.zeros((ny, nx), dtype=np.bool_)
+    floor = jump * spacing
+    for dj, di in _PAIRS:
+        for j in range(0, ny - dj):
+            for i in range(max(0, -di), nx - max(0, di)):
+                jb, ib = j + dj, i + di
+                if not (inside[j, i] and inside[jb, ib]):
+                    continue
+                gap = math.hypot(feet[j, i, 0] - feet[jb, ib, 0], feet[j, i, 1] - feet[jb, ib, 1])
+                if gap > max(floor, 0.5 * min(r[j, i], r[jb, ib])):
+                    cand[j, i] = True
+                    cand[jb, ib] = True
+    todo = np.zeros((ny, nx), dtype=np.bool_)
+    for j in range(ny):
+        for i in range(nx):
+            if not inside[j, i] or exact[j, i]:
+                continue
+            hit = False
+            for jj in range(max(j - 1, 0), min(j + 2, ny)):
+                for ii in range(max(i - 1, 0), min(i + 2, nx)):
+                    hit = hit or cand[jj, ii]
+            todo[j, i] = hit
+    return todo
+
+
+@nb.njit(cache=True)
+def medial_marks(x, y, feet, inside, spacing, limit):  # type: ignore[no-untyped-def]
+    """The feature grid's medial-axis nodes, the distance r from each node to its foot, and
+    the point where the medial axis crosses each marked node's pair.
+
+    Two neighbours both farther than half a spacing from the boundary and inside mark each
+    other when their unit directions from their feet make a dot product below ``limit``; the
+    crossing of a marked pair is where the distances to the two walls (planes through the
+    feet) are equal, clamped to the pair, and a node keeps the crossing of the last of its
+    pairs in the NumPy form's order (direction by direction, the pairs' first nodes, then
+    their second).  The same numbers as the NumPy form, node by node.
+    """
+    ny, nx = inside.shape
+    r = np.empty((ny, nx))
+    ux = np.zeros((ny, nx))
+    uy = np.zeros((ny, nx))
+    deep = np.zeros((ny, nx), dtype=np.bool_)
+    half = 0.5 * spacing
+    for j in range(ny):
+        for i in range(nx):
+            ex, ey = x[i] - feet[j, i, 0], y[j] - feet[j, i, 1]
+            rr = math.hypot(ex, ey)
+            r[j, i] = rr
+            if rr > 0:
+                ux[j, i], uy[j, i] = ex / rr, ey / rr
+            deep[j, i] = inside[j, i] and rr > half
+    marked = np.zeros((ny, nx), dtype=np.bool_)
+    axis = np.zeros((ny, nx, 2))
+    cross = np.zeros((ny, nx, 2))
+    hit = np.zeros((ny, nx), dtype=np.bool_)
+    for dj, di in _PAIRS:
+        i0, i1 = max(0, -di), nx - max(0, di)
+        for j in range(0, ny - dj):
+            for i in range(i0, i1):
+                jb, ib = j + dj, i + di
+                hit[j, i] = False
+                if not (deep[j, i] and deep[jb, ib]):
+                    continue
+                if not (ux[j, i] * ux[jb, ib] + uy[j, i] * uy[jb, ib] < limit):
+                    continue
+                hit[j, i] = True
+                marked[j, i] = True
+                marked[jb, ib] = True
+                sx, sy = x[ib] - x[i], y[jb] - y[j]
+                grow_a = sx * ux[j, i] + sy * uy[j, i]
+                grow_b = -(sx * ux[jb, ib] + sy * uy[jb, ib])
+                total = grow_a + grow_b
+                t = (r[jb, ib] - r[j, i] + grow_b) / total if total > 0 else 0.5
+                t = min(max(t, 0.0), 1.0)
+                cross[j, i, 0] = x[i] + t * sx
+                cross[j, i, 1] = y[j] + t * sy
+        # The pairs' first nodes take their crossings, then the second nodes theirs.
+        for j in range(0, ny - dj):
+            for i in range(i0, i1):
+                if hit[j, i]:
+                    axis[j, i, 0], axis[j, i, 1] = cross[j, i, 0], cross[j, i, 1]
+        for j in range(0, ny - dj):
+            for i in range(i0, i1):
+                if hit[j, i]:
+                    axis[j + dj, i + di, 0], axis[j + dj, i + di, 1] = cross[j, i, 0], cross[j, i, 1]
+    return marked, r, axis
