@@ -73,11 +73,21 @@ def test_other_domains_clean() -> None:
     dom, report = ring.cleaned(1e-6)
     assert report == {"short_pieces": 0, "dropped_loops": 0}
     assert dom.sdf(np.array([[0.75, 0.0]]))[0] == pytest.approx(-0.25)
-    # A union leaving a near-duplicate vertex: cleaned as a polygon.
+    # A union leaving a near-duplicate vertex: merged (by the set operation's snapping here),
+    # no edge shorter than the tolerance is left.
     u = Rectangle((0, 0), (1, 1)) | Polygon([(1, 0), (2, 0), (2, 1), (1.0000001, 1), (1, 1)])
     cleaned, report = u.cleaned(1e-5)
-    assert isinstance(cleaned, Polygon)
     assert cleaned.area == pytest.approx(2.0)
+    for loop in cleaned.boundary_loops(10.0):
+        assert np.hypot(*(np.roll(loop, -1, axis=0) - loop).T).min() >= 1e-5
+    # Segments only, nothing to clean: the set operation's own exact boundary comes back (the
+    # stages then reuse what they computed on it); something to clean: a cleaned polygon.
+    ell = Rectangle((0, 0), (2, 1)) | Rectangle((0, 0), (1, 2))
+    cleaned, report = ell.cleaned(1e-3)
+    assert cleaned is ell.exact_brep() and not any(report.values())
+    notch = Rectangle((0, 0), (2, 1)) - Polygon([(0.5, 1), (0.5 + 1e-4, 0.5), (0.5 + 2e-4, 1)])
+    cleaned, report = notch.cleaned(1e-3)
+    assert isinstance(cleaned, Polygon) and any(report.values())
     # Arcs: a piece shorter than the tolerance is removed and its neighbours meet.
     sliver = Circle((0, 0), 1) - Rectangle((0.999999, -1), (2, 1))
     dom, report = sliver.cleaned(1e-2)

@@ -528,8 +528,10 @@ class _Estimate:
     few milliseconds on the paper's cases).  When cleaning returns the domain itself (a
     circle), or the exact boundary with which a CSG domain answers every one of the
     estimate's questions (:func:`_answers_as`: a union, difference or intersection of
-    circles and rectangles whose boundary has arcs and no piece shorter than the cleaning
-    tolerance, which :meth:`BRep.cleaned <injmesh.geometry.BRep.cleaned>` returns as it is),
+    circles, rectangles and polygons with nothing to clean, no piece shorter than the
+    cleaning tolerance and, for segments only, nothing :meth:`Polygon.cleaned
+    <injmesh.geometry.Polygon.cleaned>` would change, which :meth:`BRep.cleaned
+    <injmesh.geometry.BRep.cleaned>` returns as it is),
     and the size followed is h itself, these are one question, asked once.  The size is
     compared by identity, so the estimate is reused only for the very h it was computed for.
     """
