@@ -122,6 +122,7 @@ class BRep(Domain):
         self._nxt = np.where(idx == last, first, idx + 1).astype(np.int64)
         self._prv = np.where(idx == first, last, idx - 1).astype(np.int64)
         self._index: tuple[Any, ...] | None = None
+        self._box: BBox | None = None
         self._corners_cache: FloatArray | None = None
 
     # --- construction helpers ---------------------------------------------------------------
@@ -231,14 +232,18 @@ class BRep(Domain):
 
     @property
     def bbox(self) -> BBox:
-        lo, hi = self._bvh()[:2]
-        o = self._origin
-        return (
-            float(lo[:, 0].min() + o[0]),
-            float(lo[:, 1].min() + o[1]),
-            float(hi[:, 0].max() + o[0]),
-            float(hi[:, 1].max() + o[1]),
-        )
+        # Asked a few dozen times per mesh (every background grid, every relative tolerance):
+        # computed once, like the index it is read from.
+        if self._box is None:
+            lo, hi = self._bvh()[:2]
+            o = self._origin
+            self._box = (
+                float(lo[:, 0].min() + o[0]),
+                float(lo[:, 1].min() + o[1]),
+                float(hi[:, 0].max() + o[0]),
+                float(hi[:, 1].max() + o[1]),
+            )
+        return self._box
 
     @property
     def area(self) -> float:
