@@ -633,6 +633,16 @@ class _Relaxation:
         # The stability limit of each moving node's step (see kernels.smooth.stable_scale).
         self._damp = np.ones(len(p))
         k.threaded_stable_scale(p, self._moving, indptr, adj, eid, ld, DT * hbar, STABLE_GAIN, self._damp)
+        self._slide_lengths(ld_slide)
+        self._depth_arrays()
+        self._inside_depth(self._free)
+        self.anchor = p.copy()
+        self.retriangulations += 1
+
+    def _slide_lengths(self, ld_slide: FloatArray | None) -> None:
+        """The sliding rows' boundary bars' ld: from ``ld_slide`` (h at their midpoints, to
+        the previous nodes then to the next ones) when the caller asked h for them, else here."""
+        p = self.p
         if len(self._sl) and ld_slide is not None:
             k_sl = len(self._sl)
             self._ld_slide = (ld_slide[:k_sl].copy(), ld_slide[k_sl:].copy())
@@ -640,13 +650,14 @@ class _Relaxation:
             b, bp, bn = self._sl.T
             self._ld_slide = (np.array(self.h(0.5 * (p[b] + p[bp])), dtype=np.float64),
                               np.array(self.h(0.5 * (p[b] + p[bn])), dtype=np.float64))
+
+    def _depth_arrays(self) -> None:
+        """The inside depths, flags and anchors, made on the first connectivity."""
+        p = self.p
         if len(self._d0) != len(p):
             self._d0 = np.zeros(len(p))
             self._deep = np.zeros(len(p), dtype=np.bool_)
             self.anchor = np.full_like(p, np.nan)  # no bound yet: every free node is evaluated
-        self._inside_depth(self._free)
-        self.anchor = p.copy()
-        self.retriangulations += 1
 
     def _connect_compiled(self) -> None:
         """``_connect(rebuild=True)`` in two compiled calls around h (``kernels.smooth.
@@ -670,16 +681,8 @@ class _Relaxation:
             hbar[lonely] = self.h(p[lonely])
         self._csr = (indptr, adj, eid, ld)
         self.hbar = hbar
-        if len(sl) and ld_slide is not None:
-            self._ld_slide = (ld_slide[:len(sl)].copy(), ld_slide[len(sl):].copy())
-        elif len(sl):
-            b, bp, bn = self._sl.T
-            self._ld_slide = (np.array(self.h(0.5 * (p[b] + p[bp])), dtype=np.float64),
-                              np.array(self.h(0.5 * (p[b] + p[bn])), dtype=np.float64))
-        if len(self._d0) != len(p):
-            self._d0 = np.zeros(len(p))
-            self._deep = np.zeros(len(p), dtype=np.bool_)
-            self.anchor = np.full_like(p, np.nan)  # no bound yet: every free node is evaluated
+        self._slide_lengths(ld_slide)
+        self._depth_arrays()
         assert self._kernel_boundary is not None
         exact = bool(getattr(self.domain, "exact_distance", False))
         self._damp = k.connect_rest(p, self._moving, self._free.astype(np.int64), indptr, adj, eid,

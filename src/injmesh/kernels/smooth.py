@@ -1242,14 +1242,22 @@ def relink(p, anchor, hbar, local_drift, t32, nbr, con, vt, tri, indptr, adj, ei
     nb = b.shape[0]
     mid = np.empty((nb + 2 * m, 2))
     mid[:nb] = mid_bars
-    for r in range(m):
-        s = rows_sl[r]
-        i, j, l = slide[s, 0], slide[s, 1], slide[s, 2]
-        mid[nb + r, 0] = 0.5 * (p[i, 0] + p[j, 0])
-        mid[nb + r, 1] = 0.5 * (p[i, 1] + p[j, 1])
-        mid[nb + m + r, 0] = 0.5 * (p[i, 0] + p[l, 0])
-        mid[nb + m + r, 1] = 0.5 * (p[i, 1] + p[l, 1])
+    _slide_mids(p, slide, rows_sl, mid, nb)
     return RELINK_OK, nodes, near, b, mid, rows_sl
+
+
+@njit(cache=True, inline="always")
+def _slide_mids(p, slide, rows, mid, at):  # type: ignore[no-untyped-def]
+    """Into ``mid`` from row ``at``: the midpoints of the bars of the sliding rows ``rows`` to
+    their previous boundary node, then those to their next one (as ``_Relaxation`` asks h)."""
+    m = rows.shape[0]
+    for r in range(m):
+        s = rows[r]
+        b, bp, bn = slide[s, 0], slide[s, 1], slide[s, 2]
+        mid[at + r, 0] = 0.5 * (p[b, 0] + p[bp, 0])
+        mid[at + r, 1] = 0.5 * (p[b, 1] + p[bp, 1])
+        mid[at + m + r, 0] = 0.5 * (p[b, 0] + p[bn, 0])
+        mid[at + m + r, 1] = 0.5 * (p[b, 1] + p[bn, 1])
 
 
 @njit(cache=True)
@@ -1392,12 +1400,7 @@ def connect_bars(p, t32, slack, slide, graded):  # type: ignore[no-untyped-def]
             i, j = bars[r, 0], bars[r, 1]
             mid[r, 0] = 0.5 * (p[i, 0] + p[j, 0])
             mid[r, 1] = 0.5 * (p[i, 1] + p[j, 1])
-        for r in range(m):
-            b, bp, bn = slide[r, 0], slide[r, 1], slide[r, 2]
-            mid[nb + r, 0] = 0.5 * (p[b, 0] + p[bp, 0])
-            mid[nb + r, 1] = 0.5 * (p[b, 1] + p[bp, 1])
-            mid[nb + m + r, 0] = 0.5 * (p[b, 0] + p[bn, 0])
-            mid[nb + m + r, 1] = 0.5 * (p[b, 1] + p[bn, 1])
+        _slide_mids(p, slide, np.arange(m), mid, nb)
     return tri, indptr, adj, eid, bars, mid
 
 
