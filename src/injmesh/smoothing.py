@@ -1985,7 +1985,8 @@ def _optimize(
         next_b[walls[:, 0]] = walls[:, 1]
         prev_b[walls[:, 1]] = walls[:, 0]
     # Corners grouped by node (CSR, in increasing corner order): the star of each node.
-    t64 = np.ascontiguousarray(tri, dtype=np.int64)
+    # Writeable too: a read-only array would compile the kernels below once more.
+    t64 = np.require(tri, dtype=np.int64, requirements=["C", "W"])
     start, by_node = corners_by_node(t64, n)
     q = triangle_quality(p, tri)
     star = star_min(start, by_node, q)

@@ -959,6 +959,9 @@ def fold_moves(nodes, moved, p, anchor, hbar, tol, worst, at, drift, count):  # 
 RUN_CAP, RUN_CONVERGED, RUN_TAIL, RUN_RETRIANGULATE, RUN_DONE = 0, 1, 2, 3, 4
 #: ``kind`` of a compiled boundary: a B-rep through its hierarchy, a circle, a rectangle.
 BOUNDARY_BREP, BOUNDARY_CIRCLE, BOUNDARY_RECTANGLE = 0, 1, 2
+#: The domain's boundary among :func:`pack_boundaries`' (an int64, not a literal 0: a literal
+#: argument would give :func:`_query_of` a second compiled version).
+_DOMAIN_BOUNDARY = np.int64(0)
 
 
 @njit(cache=True)
@@ -1138,7 +1141,7 @@ def run_steps(p, moving, free, indptr, adj, eid, ld, attraction, total, damp, hb
                 q = np.empty((asks, 2))
                 for j in range(asks):
                     q[j, 0], q[j, 1] = cand[rest[j], 0], cand[rest[j], 1]
-                d = _query_of(q, kinds, shapes, origins, cat, offs, 0, no_foot)
+                d = _query_of(q, kinds, shapes, origins, cat, offs, _DOMAIN_BOUNDARY, no_foot)
                 for j in range(asks):
                     ok[rest[j]] = not d[j] > 0.0
             worst, at, drift, count = take_near(p, near, cand, c, ok, hbar, anchor, tol, worst, at,
@@ -1291,7 +1294,7 @@ def resize(values, b, rows, ld, ld_prev, ld_next, p, nodes, near, indptr, adj, e
             q = np.empty((ask.shape[0], 2))
             for r in range(ask.shape[0]):
                 q[r, 0], q[r, 1] = p[ask[r], 0], p[ask[r], 1]
-            d = _query_of(q, kinds, shapes, origins, cat, offs, 0, np.empty((0, 2)))
+            d = _query_of(q, kinds, shapes, origins, cat, offs, _DOMAIN_BOUNDARY, np.empty((0, 2)))
             for r in range(ask.shape[0]):
                 d0[ask[r]] = d[r]
         mark_deep(d0, hbar, free, deep, deep_flags)
@@ -1324,7 +1327,7 @@ def optimize_trials(p, tri, start, corner, move, target, star, prev_b, next_b, o
                 rows[k] = a
                 q[k, 0], q[k, 1] = p[move[a], 0], p[move[a], 1]
                 k += 1
-        d = _query_of(q, kinds, shapes, origins, cat, offs, 0, np.empty((0, 2)))
+        d = _query_of(q, kinds, shapes, origins, cat, offs, _DOMAIN_BOUNDARY, np.empty((0, 2)))
         for k in range(n_free):
             depth[rows[k]] = -reach * d[k]
     n_bnd = m - n_free
@@ -1365,7 +1368,7 @@ def optimize_trials(p, tri, start, corner, move, target, star, prev_b, next_b, o
                     ask[k] = a
                     q[k, 0], q[k, 1] = step[a, 0], step[a, 1]
                     k += 1
-            d = _query_of(q, kinds, shapes, origins, cat, offs, 0, np.empty((0, 2)))
+            d = _query_of(q, kinds, shapes, origins, cat, offs, _DOMAIN_BOUNDARY, np.empty((0, 2)))
             for k in range(n_ask):
                 inside[ask[k]] = d[k] < 0.0
         ok = star_trial(p, tri, start, corner, move, step, star, prev_b, next_b, on_bnd, inside, done)
@@ -1419,7 +1422,7 @@ def connect_rest(p, moving, free, indptr, adj, eid, ld, hbar, dt, gain, anchor, 
             q = np.empty((ask.shape[0], 2))
             for r in range(ask.shape[0]):
                 q[r, 0], q[r, 1] = p[ask[r], 0], p[ask[r], 1]
-            d = _query_of(q, kinds, shapes, origins, cat, offs, 0, np.empty((0, 2)))
+            d = _query_of(q, kinds, shapes, origins, cat, offs, _DOMAIN_BOUNDARY, np.empty((0, 2)))
             for r in range(ask.shape[0]):
                 d0[ask[r]] = d[r]
         mark_deep(d0, hbar, free, deep, deep_flags)
