@@ -1289,15 +1289,8 @@ def resize(values, b, rows, ld, ld_prev, ld_next, p, nodes, near, indptr, adj, e
             k += 1
     free = free[:k]
     if k:
-        ask = depth_bounds(p, anchor, d0, hbar, free, deep, exact)
-        if ask.shape[0]:
-            q = np.empty((ask.shape[0], 2))
-            for r in range(ask.shape[0]):
-                q[r, 0], q[r, 1] = p[ask[r], 0], p[ask[r], 1]
-            d = _query_of(q, kinds, shapes, origins, cat, offs, _DOMAIN_BOUNDARY, np.empty((0, 2)))
-            for r in range(ask.shape[0]):
-                d0[ask[r]] = d[r]
-        mark_deep(d0, hbar, free, deep, deep_flags)
+        _renew_depth(p, anchor, d0, hbar, free, deep, exact, deep_flags, kinds, shapes, origins, cat,
+                     offs)
     for i in nodes:
         anchor[i, 0], anchor[i, 1] = p[i, 0], p[i, 1]
 
@@ -1417,15 +1410,25 @@ def connect_rest(p, moving, free, indptr, adj, eid, ld, hbar, dt, gain, anchor, 
     damp = np.ones(p.shape[0])
     stable_scale(p, moving, indptr, adj, eid, ld, dt * hbar, gain, damp)
     if free.shape[0]:
-        ask = depth_bounds(p, anchor, d0, hbar, free, deep, exact)
-        if ask.shape[0]:
-            q = np.empty((ask.shape[0], 2))
-            for r in range(ask.shape[0]):
-                q[r, 0], q[r, 1] = p[ask[r], 0], p[ask[r], 1]
-            d = _query_of(q, kinds, shapes, origins, cat, offs, _DOMAIN_BOUNDARY, np.empty((0, 2)))
-            for r in range(ask.shape[0]):
-                d0[ask[r]] = d[r]
-        mark_deep(d0, hbar, free, deep, deep_flags)
+        _renew_depth(p, anchor, d0, hbar, free, deep, exact, deep_flags, kinds, shapes, origins, cat,
+                     offs)
     for i in range(p.shape[0]):
         anchor[i, 0], anchor[i, 1] = p[i, 0], p[i, 1]
     return damp
+
+
+@njit(cache=True)
+def _renew_depth(p, anchor, d0, hbar, free, deep, exact, deep_flags, kinds, shapes, origins, cat,  # type: ignore[no-untyped-def]
+                 offs):
+    """``smoothing._Relaxation._inside_depth`` of the free nodes ``free``: :func:`depth_bounds`
+    from their anchors, the rest asked of the domain's boundary (boundary 0), then
+    :func:`mark_deep`."""
+    ask = depth_bounds(p, anchor, d0, hbar, free, deep, exact)
+    if ask.shape[0]:
+        q = np.empty((ask.shape[0], 2))
+        for r in range(ask.shape[0]):
+            q[r, 0], q[r, 1] = p[ask[r], 0], p[ask[r], 1]
+        d = _query_of(q, kinds, shapes, origins, cat, offs, _DOMAIN_BOUNDARY, np.empty((0, 2)))
+        for r in range(ask.shape[0]):
+            d0[ask[r]] = d[r]
+    mark_deep(d0, hbar, free, deep, deep_flags)
