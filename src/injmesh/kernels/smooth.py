@@ -1190,23 +1190,10 @@ def relink(p, anchor, hbar, local_drift, t32, nbr, con, vt, tri, indptr, adj, ei
 
     Returns ``(outcome, nodes, near, bars, mid, rows)``.
     """
-    n = p.shape[0]
-    k = 0
-    moved = np.empty(n, dtype=np.int64)
-    flag = np.zeros(n, dtype=np.bool_)
-    for i in range(n):
-        if _norm(p[i, 0] - anchor[i, 0], p[i, 1] - anchor[i, 1]) > local_drift * hbar[i]:
-            flag[i] = True
-            moved[k] = i
-            k += 1
-    moved = moved[:k]
-    nt = 0
-    rows = np.empty(t32.shape[0], dtype=np.int32)
-    for t in range(t32.shape[0]):
-        if flag[t32[t, 0]] or flag[t32[t, 1]] or flag[t32[t, 2]]:
-            rows[nt] = t
-            nt += 1
-    res, log = _flips_logged(p, t32, nbr, con, vt, rows[:nt], False)
+    # drifted()'s two scans, in one chunk each.
+    flag = np.empty(p.shape[0], dtype=np.bool_)
+    moved = _mark_drifted(p, anchor, hbar, local_drift, flag, 0)
+    res, log = _flips_logged(p, t32, nbr, con, vt, _rows_using(t32, flag, 0), False)
     none_i = np.empty(0, dtype=np.int64)
     none_p = np.empty((0, 2))
     if res < 0:
