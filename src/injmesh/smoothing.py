@@ -117,8 +117,9 @@ Other choices the paper leaves open:
   the methods make, so the meshes are bit-identical to the loop's (plain signed distances and
   curves without a kernel form keep the loop).  Interior curves too: each sliding row projects onto its
   own boundary (the domain's, a region's, a polyline's), each boundary queried on its rows in
-  order as the Python projectors are.  The paper's six cases: 12-22 % less time in all; with
-  one inclusion, 20-35 %.
+  order as the Python projectors are.  The paper's six cases: 6-28 % less time in all; with
+  one inclusion, 17-29 % (A/B in one run, with the patch set-up and quality-pass sweeps
+  compiled too).
 
   Measured with ``benchmarks/scale.py`` (CPU seconds of the smoothing stage, 2 cores under
   heavy load): 1e3 nodes 0.15 -> 0.04, 1e4 2.44 -> 0.28, 1e5 17.8 -> 1.7, together with the
@@ -326,7 +327,7 @@ class _OnDomain:
 
     def __init__(self, domain: Domain) -> None:
         self.domain = domain
-        self._packed: tuple[Any, ...] | None = None
+        self._packed: tuple[Any, ...] | None | bool = None
 
     def __call__(self, q: FloatArray, nodes: IntArray) -> FloatArray:
         return self.domain.project(q)
@@ -339,12 +340,12 @@ class _OnDomain:
             return None
         if self._packed is None:
             kb = domain.kernel_boundary()
-            if kb is None:
-                return None
             from .kernels.smooth import pack_boundaries
 
-            self._packed = pack_boundaries([kb])
-        return np.zeros(len(nodes), dtype=np.int64), self._packed
+            self._packed = False if kb is None else pack_boundaries([kb])
+        if self._packed is False:
+            return None
+        return np.zeros(len(nodes), dtype=np.int64), self._packed  # type: ignore[return-value]
 
 
 class _OnCurves:
@@ -922,11 +923,12 @@ class _Relaxation:
         target, (kinds, shapes, origins, cat, offs) = self._kernel_boundary
         sl = np.ascontiguousarray(self._sl, dtype=np.int64)
         no_bars = np.zeros(0)
-        ld_prev, ld_next = self._ld_slide if len(sl) else (no_bars, no_bars)
         left = steps
         per_call = steps if self.callback is None else 1
         while left > 0:
+            # Read at every call: a rebuild of the lists (_connect) makes these arrays anew.
             indptr, adj, eid, ld = self._csr
+            ld_prev, ld_next = self._ld_slide if len(sl) else (no_bars, no_bars)
             outcome, taken, self.iterations, worst, at, count = k.run_steps(
                 p, self._moving, self._free, indptr, adj, eid, ld, attraction, self._total,
                 self._damp, self.hbar, DT, STEP_CAP, self._deep, self.anchor, self._d0,
