@@ -54,7 +54,7 @@ def test_threaded_step_equals_serial_bit_for_bit(seed: int, n: int, chunks: int,
                                                  deep_share: float) -> None:
     rng = np.random.default_rng(seed)
     p = rng.random((n, 2))
-    indptr, adj, eid, bars = k.adjacency(n, delaunay(p).astype(np.int32))
+    indptr, adj, eid, bars = k.adjacency(n, delaunay(p).astype(np.int32), 0)
     ld = 0.05 + 0.1 * rng.random(len(bars))
     hbar = k.mean_bar_size(indptr, eid, ld)
     moving = np.sort(rng.choice(n, size=n - 3, replace=False))

@@ -38,7 +38,7 @@ def _reference_forces(p, bars, ld, attraction):
 
 def test_adjacency_matches_unique_edges() -> None:
     p, tri = _mesh()
-    indptr, adj, eid, bars = adjacency(len(p), tri)
+    indptr, adj, eid, bars = adjacency(len(p), tri, 0)
     assert np.array_equal(bars, unique_edges(tri))
     for v in range(len(p)):
         row = adj[indptr[v]:indptr[v + 1]]
@@ -49,14 +49,14 @@ def test_adjacency_matches_unique_edges() -> None:
 
 def test_adjacency_leaves_unused_nodes_empty() -> None:
     p, tri = _mesh()
-    indptr, adj, _, _ = adjacency(len(p) + 2, tri)
+    indptr, adj, _, _ = adjacency(len(p) + 2, tri, 0)
     assert indptr[-1] == indptr[-3] == len(adj)
 
 
 @pytest.mark.parametrize("attraction", [ATTRACTION, 0.0], ids=["attractive", "spring"])
 def test_gather_forces_equal_scatter_reference(attraction: float) -> None:
     p, tri = _mesh(1)
-    indptr, adj, eid, bars = adjacency(len(p), tri)
+    indptr, adj, eid, bars = adjacency(len(p), tri, 0)
     mid = 0.5 * (p[bars[:, 0]] + p[bars[:, 1]])
     ld = 0.1 + 0.05 * mid[:, 0]
     total = np.zeros_like(p)
@@ -71,7 +71,7 @@ def test_gather_forces_equal_scatter_reference(attraction: float) -> None:
 
 def test_advance_steps_clamps_and_defers_near_nodes() -> None:
     p, tri = _mesh(2)
-    indptr, adj, eid, bars = adjacency(len(p), tri)
+    indptr, adj, eid, bars = adjacency(len(p), tri, 0)
     ld = np.full(len(bars), 0.3)
     total = np.zeros_like(p)
     bar_forces(p, np.arange(len(p)), indptr, adj, eid, ld, 0.0, total, np.ones(len(p)))
@@ -97,7 +97,7 @@ def test_advance_steps_clamps_and_defers_near_nodes() -> None:
 
 def test_rings_grow_by_one_edge_per_step() -> None:
     p, tri = _mesh(3)
-    indptr, adj, _, bars = adjacency(len(p), tri)
+    indptr, adj, _, bars = adjacency(len(p), tri, 0)
     seeds = np.array([0], dtype=np.int64)
     assert np.flatnonzero(rings(indptr, adj, seeds, 0)).tolist() == [0]
     one = rings(indptr, adj, seeds, 1)
@@ -426,7 +426,7 @@ def test_a_node_pulled_by_many_stretched_bars_does_not_overshoot(neighbours: int
     ring = 5.0 * np.stack([np.cos(ang), np.sin(ang)], axis=1)
     p = np.concatenate([[[0.3, -0.2]], ring])
     tri = np.array([[0, 1 + k, 1 + (k + 1) % neighbours] for k in range(neighbours)], dtype=np.int32)
-    indptr, adj, eid, bars = adjacency(len(p), tri)
+    indptr, adj, eid, bars = adjacency(len(p), tri, 0)
     ld = np.ones(len(bars))
     hbar = mean_bar_size(indptr, eid, ld)
     damp = np.ones(len(p))
@@ -675,7 +675,7 @@ def test_fused_step_kernels_equal_the_separate_calls(seed: int, n: int, attracti
 
     rng = np.random.default_rng(seed)
     p, tri = _mesh(seed % 1000, n)
-    indptr, adj, eid, bars = adjacency(n, tri)
+    indptr, adj, eid, bars = adjacency(n, tri, 0)
     ld = rng.uniform(0.05, 0.4, len(bars))
     hbar = mean_bar_size(indptr, eid, ld)
     hbar[hbar == 0] = 0.1

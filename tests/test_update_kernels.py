@@ -170,7 +170,7 @@ def test_padded_adjacency_is_the_rows_with_free_slots(
     p, tri, _ = _mesh(seed, n, lattice)
     t32 = tri.astype(np.int32)
     m = len(p) + lonely
-    indptr, adj, eid, bars = adjacency(m, t32)
+    indptr, adj, eid, bars = adjacency(m, t32, 0)
     got_ptr, got_adj, got_eid, got_bars = adjacency(m, t32, slack)
     assert np.array_equal(got_bars, bars)
     assert np.array_equal(np.diff(got_ptr), np.diff(indptr) + slack)

@@ -1545,7 +1545,7 @@ def _patch_whole(
     be.  Returns the points, triangles, steps and triangulations."""
     from .kernels.smooth import adjacency, rings
 
-    indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32))
+    indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32), 0)
     active = rings(indptr, adj, touched, ring)
     whole = _Relaxation(relax.domain, relax.h, p, relax.n_fixed, relax.slide, relax.walls,
                         relax.callback, relax.cap, active=active, tri=tri, project=relax.project,
@@ -1566,7 +1566,7 @@ def _patch_local(
     from .kernels.smooth import adjacency, rings
 
     if csr is None:
-        indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32))
+        indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32), 0)
     else:
         indptr, adj = csr
     active = rings(indptr, adj, touched, ring)

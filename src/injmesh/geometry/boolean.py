@@ -64,7 +64,7 @@ def boolean_brep(expr: Domain) -> BRep | None:
     # 1. split
     k = _kernels()
     plo, phi_ = k.piece_boxes(p0, p1, cen, r, a0, sw)
-    tree = k.build_bvh(plo, phi_)
+    tree = k.build_bvh(plo, phi_, k.LEAF)
     pairs = k.box_pairs(plo, phi_, *tree, snap)
     pairs = pairs[owner[pairs[:, 0]] < owner[pairs[:, 1]]]
     rec_k, rec_xy = k.split_points(np.ascontiguousarray(pairs), p0, p1, cen, r, a0, sw, snap)

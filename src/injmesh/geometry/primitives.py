@@ -531,7 +531,7 @@ def _pinch_rings(
     Returns the rings, the parts dropped as ``(x, y, gap, area)`` (the pinch's midpoint, local
     coordinates) and the pinches whose smaller part is larger than ``max_area`` (not cut).
     """
-    from ..kernels.brep import box_pairs, build_bvh
+    from ..kernels.brep import LEAF, box_pairs, build_bvh
 
     rings = [r.copy() for r in local]
     dropped: list[tuple[float, float, float, float]] = []
@@ -539,7 +539,7 @@ def _pinch_rings(
     for _ in range(PINCH_ROUNDS):
         a, b, ring, nxt = _ring_edges(rings)
         lo, hi = np.minimum(a, b), np.maximum(a, b)
-        tree = build_bvh(lo, hi)
+        tree = build_bvh(lo, hi, LEAF)
         pairs = box_pairs(lo, hi, *tree, float(width))  # type: ignore[call-arg]
         i, j = pairs[:, 0], pairs[:, 1]
         keep = (i < j) & (nxt[i] != j) & (nxt[j] != i)

@@ -176,7 +176,7 @@ def piece_boxes(p0, p1, c, r, a0, sw):  # type: ignore[no-untyped-def]
 
 
 @nb.njit(cache=True)
-def build_bvh(lo, hi, leaf=LEAF):  # type: ignore[no-untyped-def]
+def build_bvh(lo, hi, leaf):  # type: ignore[no-untyped-def]
     """A bounding-volume hierarchy over boxes ``lo, hi (m, 2)``, at most ``leaf`` boxes per leaf.
 
     Returns ``node_lo, node_hi (k, 2)``, ``child (k,)`` (index of the first of two consecutive

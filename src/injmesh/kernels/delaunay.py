@@ -260,7 +260,7 @@ def _legalize(pts, tri, nbr, con, vt, stack, sp, cap, log=None):  # type: ignore
     flips = 0
     while sp > 0:
         sp -= 1
-        code = stack[sp]
+        code = np.int64(stack[sp])  # int64 like the callers' row loops: one compile of the callees
         t = code // 3
         k = code - 3 * t
         if tri[t, 0] == DEAD:
@@ -288,7 +288,7 @@ def _legalize_vertex(pts, tri, nbr, con, vt, p, stack, sp):  # type: ignore[no-u
     opposite p can be illegal (flips keep p at corner 0 of both new triangles)."""
     while sp > 0:
         sp -= 1
-        t = stack[sp]
+        t = np.int64(stack[sp])
         k = _corner(tri, t, p)
         if _edge_illegal(pts, tri, nbr, con, t, k):
             u = _flip(tri, nbr, con, vt, t, k)
@@ -861,7 +861,7 @@ def flip_rows_to_delaunay(points, tri, nbr, constrained, vt, rows, log=None):  #
     the test would find it Delaunay.  The flips made are the same, in the same order.
     """
     for a in range(rows.shape[0]):
-        t = rows[a]
+        t = np.int64(rows[a])
         if tri[t, 0] == DEAD or _is_ghost(tri, t):
             continue
         if _orient(points, tri[t, 0], tri[t, 1], tri[t, 2]) <= 0.0:
@@ -871,7 +871,7 @@ def flip_rows_to_delaunay(points, tri, nbr, constrained, vt, rows, log=None):  #
     flips = 0
     swept = np.zeros(tri.shape[0], dtype=np.bool_)
     for a in range(rows.shape[0]):
-        t = rows[a]
+        t = np.int64(rows[a])
         if tri[t, 0] == DEAD or swept[t]:
             continue
         swept[t] = True

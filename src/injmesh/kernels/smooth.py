@@ -16,7 +16,7 @@ Examples
 --------
 >>> import numpy as np
 >>> from injmesh.kernels.smooth import adjacency
->>> indptr, adj, eid, bars = adjacency(4, np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int32))
+>>> indptr, adj, eid, bars = adjacency(4, np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int32), 0)
 >>> bars.tolist()
 [[0, 1], [0, 2], [0, 3], [1, 2], [2, 3]]
 >>> adj[indptr[2]:indptr[3]].tolist()
@@ -110,7 +110,7 @@ def slide_accept(p, slide, hbar, cand, moved):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def adjacency(n, tri, slack=0):  # type: ignore[no-untyped-def]
+def adjacency(n, tri, slack):  # type: ignore[no-untyped-def]
     """Node neighbours of the triangles ``tri (m, 3)`` over ``n`` nodes, in CSR form.
 
     Returns ``indptr (n + 1,) int64``, ``adj (2k,) int32`` (each row sorted, no repeats),
@@ -1193,7 +1193,8 @@ def relink(p, anchor, hbar, local_drift, t32, nbr, con, vt, tri, indptr, adj, ei
     # drifted()'s two scans, in one chunk each.
     flag = np.empty(p.shape[0], dtype=np.bool_)
     moved = _mark_drifted(p, anchor, hbar, local_drift, flag, 0)
-    res, log = _flips_logged(p, t32, nbr, con, vt, _rows_using(t32, flag, 0), False)
+    res, log = _flips_logged(p, t32, nbr, con, vt, _rows_using(t32, flag, 0),
+                             np.bool_(False))  # a literal False: one more compile
     none_i = np.empty(0, dtype=np.int64)
     none_p = np.empty((0, 2))
     if res < 0:
