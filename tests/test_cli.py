@@ -444,3 +444,17 @@ def test_verbose_logs_to_stderr(tmp_path, capsys):
     status, out, err = run(capsys, "generate", "unit_disc", "--size", "0.3", "-o",
                            tmp_path / "m.msh", "-q")
     assert status == 0 and out == "" and err == ""
+
+
+def test_progress_bar_shows_compiling_on_the_stage_line():
+    import io
+
+    stream = io.StringIO()
+    bar = ProgressBar(stream, width=10, interval=0)
+    bar(Progress("smoothing", 1, 10, {}))
+    bar(Progress("compiling", 3, None, {"kernel": "relink"}))
+    bar(Progress("smoothing", 2, 10, {}))
+    bar.close()
+    text = stream.getvalue()
+    assert "smoothing  compiling kernels, first run only: 3 (relink)" in text
+    assert text.count("\n") == 1  # no line of its own: the stage's line is redrawn

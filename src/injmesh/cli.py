@@ -146,6 +146,14 @@ class ProgressBar:
 
     def __call__(self, event: Progress) -> None:
         now = time.monotonic()
+        if event.stage == "compiling":
+            # Kernels compiled on first use, in the middle of a stage: shown on that stage's
+            # line (the next event of the stage redraws it), so no line per kernel.
+            if now - self._last >= self.interval:
+                self._last = now
+                self._write(f"{self._stage or '':<10} compiling kernels, first run only: "
+                            f"{event.step} ({event.info.get('kernel', '')})")
+            return
         new_stage = event.stage != self._stage
         done = event.total is not None and event.step >= event.total
         if not (new_stage or done or now - self._last >= self.interval):
@@ -176,7 +184,9 @@ class ProgressBar:
             if key in event.info:
                 value = event.info[key]
                 extras.append(f"{key} {value:.3g}" if isinstance(value, float) else f"{key} {value}")
-        line = f"{event.stage:<10} {bar}  {'  '.join(extras)}".rstrip()
+        self._write(f"{event.stage:<10} {bar}  {'  '.join(extras)}".rstrip())
+
+    def _write(self, line: str) -> None:
         self.stream.write("\r" + line + " " * max(0, self._length - len(line)))
         self.stream.flush()
         self._length = len(line)

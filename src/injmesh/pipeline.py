@@ -30,7 +30,7 @@ from .geometry.regions import Constraints, CurvesLike, RegionsLike, build_constr
 from .geometry.tracing import grid_spacing
 from .injection import inject_nodes
 from .mesh import Mesh, MeshStats
-from .progress import Callback
+from .progress import Callback, reports_compiles
 from .sizing import GriddedSize, SizeFunction, SizeLike, as_size_function, effective_size
 from .sizing.features import unrestricted
 from .smoothing import Interfaces, Smoothing, SmoothResult, smooth
@@ -51,6 +51,7 @@ PINCH_AREA = 1.0
 logger = logging.getLogger(__name__)
 
 
+@reports_compiles
 def generate(
     domain: Domain | Callable[[FloatArray], FloatArray] | object,
     size: SizeLike,
@@ -148,7 +149,8 @@ def generate(
         warning).
     callback : callable, optional
         Called with a :class:`~injmesh.progress.Progress` event per boundary sweep, injection
-        layer and smoothing iteration.
+        layer and smoothing iteration, and per kernel numba compiles on first use
+        (:func:`~injmesh.progress.compile_progress`).
     regions : mapping name -> Domain or callable, optional
         Injection only.  Sub-regions of the domain (materials, zones), which may touch each
         other and the domain's boundary but not overlap; a plain callable ``d(p)`` uses the

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import functools
 import logging
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 logger = logging.getLogger("injmesh")
 
@@ -17,7 +20,9 @@ class Progress:
     Attributes
     ----------
     stage : str
-        ``"boundary"``, ``"injection"``, ``"smoothing"`` or ``"distmesh"``.
+        ``"boundary"``, ``"injection"``, ``"smoothing"`` or ``"distmesh"``; ``"compiling"``
+        while numba compiles a kernel on its first use (see :func:`compile_progress`), in the
+        middle of another stage.
     step : int
         Iteration or layer number within the stage (1-based); 0 marks the start of a stage
         whose set-up takes a while before its first step (smoothing: the first
@@ -27,7 +32,7 @@ class Progress:
     info : dict
         Stage-specific figures: ``nodes``; for smoothing ``max_move`` (largest move of the
         step over hbar), ``moving`` (nodes that moved more than the stopping tolerance) and
-        ``force``; for injection ``front``.
+        ``force``; for injection ``front``; for compiling ``kernel`` (its name).
     """
 
     stage: str
@@ -45,3 +50,75 @@ def report(callback: Callback | None, stage: str, step: int, total: int | None =
         logger.debug("%s %d/%s %s", stage, step, total, info)
     if callback is not None:
         callback(Progress(stage, step, total, info))
+
+
+#: Said once per process, at the first kernel compiled.
+COMPILE_NOTE = ("compiling injmesh's numba kernels on first use; they are cached on disk, so "
+                "this happens once per installation (about 2 minutes on 2 cores)")
+
+_watching = threading.local()
+_noted = False
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+@contextmanager
+def compile_progress(callback: Callback | None) -> Iterator[None]:
+    """Report numba's compilations of injmesh's kernels while the block runs.
+
+    The first call after installation compiles every kernel it meets (numba caches them on
+    disk afterwards): minutes with no other sign of life.  Each kernel compiled becomes a
+    ``"compiling"`` :class:`Progress` event (``step``: kernels compiled so far, ``info``:
+    ``kernel``), and the first one of the process is logged at INFO level
+    (:data:`COMPILE_NOTE`).  A run that finds every kernel in the cache compiles nothing and
+    reports nothing.  Nested blocks on one thread report once (a ``target_nodes`` search
+    meshes several times); the listener is numba's documented event API, registered only
+    while the block runs and only when somebody listens (a callback, or INFO logging).
+    """
+    if getattr(_watching, "on", False) or (callback is None and not logger.isEnabledFor(logging.INFO)):
+        yield
+        return
+    from numba.core import event
+
+    class _Listener(event.Listener):  # type: ignore[misc]
+        count = 0
+
+        def on_start(self, ev: Any) -> None:
+            global _noted
+            dispatcher = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
+            func = getattr(dispatcher, "py_func", None)
+            if not getattr(func, "__module__", "").startswith("injmesh."):
+                return  # numba's own overloads, or the user's code
+            if threading.current_thread() is not owner:
+                return  # another thread's mesh
+            if not _noted:
+                _noted = True
+                logger.info(COMPILE_NOTE)
+            self.count += 1
+            if callback is not None:
+                name = getattr(func, "__qualname__", "")
+                callback(Progress("compiling", self.count, None, {"kernel": name}))
+
+        def on_end(self, ev: Any) -> None:
+            pass
+
+    owner = threading.current_thread()
+    listener = _Listener()
+    _watching.on = True
+    event.register("numba:compile", listener)
+    try:
+        yield
+    finally:
+        event.unregister("numba:compile", listener)
+        _watching.on = False
+
+
+def reports_compiles(fn: F) -> F:
+    """``fn`` run inside :func:`compile_progress` of its ``callback`` keyword argument."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        with compile_progress(kwargs.get("callback")):
+            return fn(*args, **kwargs)
+
+    return wrapper  # type: ignore[return-value]
