@@ -54,3 +54,13 @@ def test_warm_generate_reports_its_stages_only():
     injmesh.generate(injmesh.Circle((0, 0), 1), 0.3, callback=events.append)
     stages = {e.stage for e in events}
     assert "compiling" not in stages and {"boundary", "injection", "smoothing"} <= stages
+
+
+def test_warnings_still_point_at_the_caller():
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        injmesh.generate(injmesh.Circle((0, 0), 1), 0.3, max_iterations=1, callback=lambda e: None)
+    convergence = [w for w in caught if issubclass(w.category, injmesh.ConvergenceWarning)]
+    assert convergence and all(w.filename == __file__ for w in convergence)

@@ -30,7 +30,7 @@ from .geometry.regions import Constraints, CurvesLike, RegionsLike, build_constr
 from .geometry.tracing import grid_spacing
 from .injection import inject_nodes
 from .mesh import Mesh, MeshStats
-from .progress import Callback, reports_compiles
+from .progress import Callback, compile_progress
 from .sizing import GriddedSize, SizeFunction, SizeLike, as_size_function, effective_size
 from .sizing.features import unrestricted
 from .smoothing import Interfaces, Smoothing, SmoothResult, smooth
@@ -51,7 +51,6 @@ PINCH_AREA = 1.0
 logger = logging.getLogger(__name__)
 
 
-@reports_compiles
 def generate(
     domain: Domain | Callable[[FloatArray], FloatArray] | object,
     size: SizeLike,
@@ -198,68 +197,71 @@ def generate(
     >>> bool(mesh.quality().min() > 0.7)
     True
     """
-    dom = as_domain(domain, bbox=bbox, fixed_points=fixed_points)
-    h = as_size_function(size)
-    fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
-    if max_iterations is not None and (int(max_iterations) != max_iterations or max_iterations < 0):
-        raise ValueError(f"max_iterations must be a non-negative integer, got {max_iterations!r}")
-    if not (isinstance(max_nodes, (int, np.integer)) and max_nodes > 0):
-        raise ValueError(f"max_nodes must be a positive integer, got {max_nodes!r}")
-    if target_nodes is not None:
-        if method != "injection":
-            raise ValueError("target_nodes applies to method='injection' only")
-        wanted = _check_target_nodes(target_nodes, int(max_nodes))
-        budget = max(int(max_nodes), 2 * wanted)
+    # The kernels numba compiles on first use are progress events.  (A with-block adds no
+    # frame: the warnings below still point at the caller.)
+    with compile_progress(callback):
+        dom = as_domain(domain, bbox=bbox, fixed_points=fixed_points)
+        h = as_size_function(size)
+        fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
+        if max_iterations is not None and (int(max_iterations) != max_iterations or max_iterations < 0):
+            raise ValueError(f"max_iterations must be a non-negative integer, got {max_iterations!r}")
+        if not (isinstance(max_nodes, (int, np.integer)) and max_nodes > 0):
+            raise ValueError(f"max_nodes must be a positive integer, got {max_nodes!r}")
+        if target_nodes is not None:
+            if method != "injection":
+                raise ValueError("target_nodes applies to method='injection' only")
+            wanted = _check_target_nodes(target_nodes, int(max_nodes))
+            budget = max(int(max_nodes), 2 * wanted)
 
-        def at_scale(scale: float, full: bool) -> Mesh | int:
-            # Full mesh, or only the node count of Steps 1 and 2, with h scaled by ``scale``.
-            scaled: SizeLike = scale * h.constant if h.constant is not None else _Scaled(h, scale)
-            if not full:
-                return len(initial_nodes(domain, scaled, bbox=bbox, fixed_points=fixed_points,
-                                         max_nodes=budget, feature_layers=feature_layers,
-                                         gradation=gradation, min_feature=min_feature))
-            return generate(domain, scaled, bbox=bbox, fixed_points=fixed_points,
-                            max_iterations=max_iterations, max_nodes=budget, smoothing=smoothing,
-                            feature_layers=feature_layers, gradation=gradation, strict=strict,
-                            callback=callback, regions=regions, curves=curves, min_feature=min_feature)
+            def at_scale(scale: float, full: bool) -> Mesh | int:
+                # Full mesh, or only the node count of Steps 1 and 2, with h scaled by ``scale``.
+                scaled: SizeLike = scale * h.constant if h.constant is not None else _Scaled(h, scale)
+                if not full:
+                    return len(initial_nodes(domain, scaled, bbox=bbox, fixed_points=fixed_points,
+                                             max_nodes=budget, feature_layers=feature_layers,
+                                             gradation=gradation, min_feature=min_feature))
+                return generate(domain, scaled, bbox=bbox, fixed_points=fixed_points,
+                                max_iterations=max_iterations, max_nodes=budget, smoothing=smoothing,
+                                feature_layers=feature_layers, gradation=gradation, strict=strict,
+                                callback=callback, regions=regions, curves=curves, min_feature=min_feature)
 
-        return _meet_node_count(as_domain(domain, bbox=bbox, fixed_points=fixed_points), h,
-                                wanted, at_scale, budget)
+            return _meet_node_count(as_domain(domain, bbox=bbox, fixed_points=fixed_points), h,
+                                    wanted, at_scale, budget)
 
-    if method == "distmesh":
-        from .distmesh import distmesh
+        if method == "distmesh":
+            from .distmesh import distmesh
 
-        if regions is not None or curves is not None or min_feature is not None:
-            raise ValueError("regions, curves and min_feature apply to method='injection' only")
-        mesh = distmesh(
-            dom, h, h0=h0, seed=seed, fixed_points=fixed, max_iterations=max_iterations,
-            max_nodes=int(max_nodes), callback=callback,
-        )
-        # DistMesh has no boundary segments to hold its mesh to: the structural checks only.
-        defects = tuple(mesh_defects(mesh.points, mesh.triangles, diameter=dom.diameter))
-        mesh = replace(mesh, stats=replace(mesh.stats, valid=not defects, defects=defects))
-    elif method == "injection":
-        if h0 is not None or seed is not None:
-            raise ValueError("h0 and seed apply to method='distmesh' only")
-        if smoothing not in ("hybrid", "attractive"):
-            raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
-        dom, cleaning, known = _clean(dom, h, min_feature)
-        constraints = None
-        if regions is not None or curves is not None:
-            estimate = known.of(dom, h)
-            if estimate is None:
-                estimate = estimate_nodes(dom, h.restricted(dom))
-                known = _Estimate(dom, h, estimate)
-            constraints = build_constraints(dom, regions, curves, estimate[0])
-            if constraints.regions and feature_layers is not None:
-                h = _region_features(dom, h, constraints, feature_layers)
-        cornered = corner_size(dom, h, _rate(gradation))
-        target, follow = _target_size(dom, cornered, feature_layers, gradation)
-        mesh = _injection(dom, follow, fixed, max_iterations, int(max_nodes), smoothing, callback,
-                          constraints, known.followed(dom, cornered, target))
-        mesh = replace(mesh, size=target, stats=replace(mesh.stats, cleaning=cleaning))
-    else:
-        raise ValueError(f"method must be 'injection' or 'distmesh', got {method!r}")
+            if regions is not None or curves is not None or min_feature is not None:
+                raise ValueError("regions, curves and min_feature apply to method='injection' only")
+            mesh = distmesh(
+                dom, h, h0=h0, seed=seed, fixed_points=fixed, max_iterations=max_iterations,
+                max_nodes=int(max_nodes), callback=callback,
+            )
+            # DistMesh has no boundary segments to hold its mesh to: the structural checks only.
+            defects = tuple(mesh_defects(mesh.points, mesh.triangles, diameter=dom.diameter))
+            mesh = replace(mesh, stats=replace(mesh.stats, valid=not defects, defects=defects))
+        elif method == "injection":
+            if h0 is not None or seed is not None:
+                raise ValueError("h0 and seed apply to method='distmesh' only")
+            if smoothing not in ("hybrid", "attractive"):
+                raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
+            dom, cleaning, known = _clean(dom, h, min_feature)
+            constraints = None
+            if regions is not None or curves is not None:
+                estimate = known.of(dom, h)
+                if estimate is None:
+                    estimate = estimate_nodes(dom, h.restricted(dom))
+                    known = _Estimate(dom, h, estimate)
+                constraints = build_constraints(dom, regions, curves, estimate[0])
+                if constraints.regions and feature_layers is not None:
+                    h = _region_features(dom, h, constraints, feature_layers)
+            cornered = corner_size(dom, h, _rate(gradation))
+            target, follow = _target_size(dom, cornered, feature_layers, gradation)
+            mesh = _injection(dom, follow, fixed, max_iterations, int(max_nodes), smoothing, callback,
+                              constraints, known.followed(dom, cornered, target))
+            mesh = replace(mesh, size=target, stats=replace(mesh.stats, cleaning=cleaning))
+        else:
+            raise ValueError(f"method must be 'injection' or 'distmesh', got {method!r}")
     if not mesh.stats.converged:
         where = mesh.stats.unsettled
         at = f" (still moving most at ({where[0]:.6g}, {where[1]:.6g}))" if where else ""

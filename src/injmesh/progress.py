@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import functools
 import logging
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any, TypeVar
+from typing import Any
 
 logger = logging.getLogger("injmesh")
 
@@ -58,8 +57,6 @@ COMPILE_NOTE = ("compiling injmesh's numba kernels on first use; they are cached
 
 _watching = threading.local()
 _noted = False
-
-F = TypeVar("F", bound=Callable[..., Any])
 
 
 @contextmanager
@@ -112,13 +109,3 @@ def compile_progress(callback: Callback | None) -> Iterator[None]:
         event.unregister("numba:compile", listener)
         _watching.on = False
 
-
-def reports_compiles(fn: F) -> F:
-    """``fn`` run inside :func:`compile_progress` of its ``callback`` keyword argument."""
-
-    @functools.wraps(fn)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        with compile_progress(kwargs.get("callback")):
-            return fn(*args, **kwargs)
-
-    return wrapper  # type: ignore[return-value]
