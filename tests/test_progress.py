@@ -64,3 +64,29 @@ def test_warnings_still_point_at_the_caller():
         injmesh.generate(injmesh.Circle((0, 0), 1), 0.3, max_iterations=1, callback=lambda e: None)
     convergence = [w for w in caught if issubclass(w.category, injmesh.ConvergenceWarning)]
     assert convergence and all(w.filename == __file__ for w in convergence)
+
+
+def test_what_the_callback_raises_while_compiling_comes_out_after_the_compiler():
+    class Cancel(Exception):
+        pass
+
+    def cancel(event: Progress) -> None:
+        if event.stage == "compiling":
+            raise Cancel
+
+    kernel = _fresh_kernel("injmesh.kernels.fake")
+    try:
+        with compile_progress(cancel):
+            assert kernel(1) == 2  # the compile itself completes
+            progress.report(None, "smoothing", 1)  # the next event raises it
+        raise AssertionError("not raised")
+    except Cancel:
+        pass
+    assert kernel(2) == 3 and len(kernel.signatures) == 1  # numba is left in order
+    other = _fresh_kernel("injmesh.kernels.fake")
+    try:
+        with compile_progress(cancel):
+            other(1)  # no event after it: raised when the block ends
+        raise AssertionError("not raised")
+    except Cancel:
+        pass

@@ -47,8 +47,17 @@ def report(callback: Callback | None, stage: str, step: int, total: int | None =
     """Send a :class:`Progress` event to ``callback`` (if any) and to the debug log."""
     if logger.isEnabledFor(logging.DEBUG):
         logger.debug("%s %d/%s %s", stage, step, total, info)
+    _raise_deferred()
     if callback is not None:
         callback(Progress(stage, step, total, info))
+
+
+def _raise_deferred() -> None:
+    """Raise what the callback raised on a ``"compiling"`` event (see :func:`compile_progress`)."""
+    exc = getattr(_watching, "pending", None)
+    if exc is not None:
+        _watching.pending = None
+        raise exc
 
 
 #: Said once per process, at the first kernel compiled.
@@ -71,6 +80,10 @@ def compile_progress(callback: Callback | None) -> Iterator[None]:
     reports nothing.  Nested blocks on one thread report once (a ``target_nodes`` search
     meshes several times); the listener is numba's documented event API, registered only
     while the block runs and only when somebody listens (a callback, or INFO logging).
+
+    The callback is called from inside numba's compiler: what it raises there (a batch's
+    time limit, a user's cancel) is kept and raised at the next progress event, or when the
+    block ends, never through the compiler.
     """
     if getattr(_watching, "on", False) or (callback is None and not logger.isEnabledFor(logging.INFO)):
         yield
@@ -92,9 +105,12 @@ def compile_progress(callback: Callback | None) -> Iterator[None]:
                 _noted = True
                 logger.info(COMPILE_NOTE)
             self.count += 1
-            if callback is not None:
+            if callback is not None and getattr(_watching, "pending", None) is None:
                 name = getattr(func, "__qualname__", "")
-                callback(Progress("compiling", self.count, None, {"kernel": name}))
+                try:
+                    callback(Progress("compiling", self.count, None, {"kernel": name}))
+                except BaseException as exc:  # noqa: BLE001 - raised again outside the compiler
+                    _watching.pending = exc
 
         def on_end(self, ev: Any) -> None:
             pass
@@ -108,4 +124,5 @@ def compile_progress(callback: Callback | None) -> Iterator[None]:
     finally:
         event.unregister("numba:compile", listener)
         _watching.on = False
+    _raise_deferred()
 
