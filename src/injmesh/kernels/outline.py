@@ -148,6 +148,17 @@ def facing_walls(v, prv, seg, seg_len, v_n, seg_n, radius, width, back_to_back, 
     return False, out_a[:m].copy(), out_f[:m].copy(), out_d[:m].copy()
 
 
+@nb.njit(cache=True, inline="always")
+def segment_foot(px, py, ax, ay, bx, by):  # type: ignore[no-untyped-def]
+    """The foot ``a + t (b - a)`` (t clamped to [0, 1]) of the point on segment ab and its
+    distance (a hypot): the numbers of :func:`nearest_of_segments`, one segment."""
+    abx, aby = bx - ax, by - ay
+    l2 = max(abx * abx + aby * aby, _TINY)
+    t = min(max(((px - ax) * abx + (py - ay) * aby) / l2, 0.0), 1.0)
+    qx, qy = ax + t * abx, ay + t * aby
+    return math.hypot(px - qx, py - qy), qx, qy
+
+
 @nb.njit(cache=True)
 def nearest_of_segments(p, cand, seg_a, seg_b):  # type: ignore[no-untyped-def]
     """The distance from each point of ``p (n, 2)`` to the nearest of its candidate segments
@@ -156,7 +167,6 @@ def nearest_of_segments(p, cand, seg_a, seg_b):  # type: ignore[no-untyped-def]
     numbers of the NumPy form (tests/test_feature_size.py), without its (n, c, 2) temporaries
     (the feature grid's nearest boundary points)."""
     n, c = cand.shape
-    tiny = np.finfo(np.float64).tiny
     dist = np.empty(n)
     foot = np.empty((n, 2))
     for i in range(n):
@@ -165,12 +175,7 @@ def nearest_of_segments(p, cand, seg_a, seg_b):  # type: ignore[no-untyped-def]
         fx, fy = 0.0, 0.0
         for j in range(c):
             k = cand[i, j]
-            ax, ay = seg_a[k, 0], seg_a[k, 1]
-            abx, aby = seg_b[k, 0] - ax, seg_b[k, 1] - ay
-            l2 = max(abx * abx + aby * aby, tiny)
-            t = min(max(((px - ax) * abx + (py - ay) * aby) / l2, 0.0), 1.0)
-            qx, qy = ax + t * abx, ay + t * aby
-            d = math.hypot(px - qx, py - qy)
+            d, qx, qy = segment_foot(px, py, seg_a[k, 0], seg_a[k, 1], seg_b[k, 0], seg_b[k, 1])
             if d < best:
                 best, fx, fy = d, qx, qy
         dist[i] = best
