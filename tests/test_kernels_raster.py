@@ -69,3 +69,45 @@ def test_closed_form_grids_equal_the_pointwise_sdf(domain: Circle | Rectangle) -
     X, Y = np.meshgrid(x, y)
     expected = domain.sdf(np.stack([X.ravel(), Y.ravel()], axis=1)).reshape(X.shape)
     assert np.array_equal(_sdf_on_grid(domain, x, y, float(x[1] - x[0])), expected)
+
+
+@pytest.mark.parametrize("domain", _domains())
+def test_inside_test_answers_as_the_sdf_next_to_the_boundary(domain) -> None:
+    """Points within two grid spacings of the boundary, where the test decides whether a cell
+    is sure of its sign (the nodes it trusts are farther from every polyline segment than a
+    cell's half diagonal plus the polylines' tolerance)."""
+    from injmesh.sizing.background import inside_test
+
+    x0, y0, x1, y1 = domain.bbox
+    s = max(x1 - x0, y1 - y0) / 64
+    test = inside_test(domain, s)
+    if test is None:
+        return
+    from injmesh.sizing.background import exact_boundary
+
+    rim = np.concatenate(exact_boundary(domain).boundary_loops(s / 4))
+    rng = np.random.default_rng(7)
+    p = np.concatenate([rim] + [rim + rng.uniform(-w * s, w * s, rim.shape) for w in (2.0, 1.0, 0.1)
+                                for _ in range(4)])
+    assert np.array_equal(test(p), domain.sdf(p) <= 0)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_near_nodes_are_the_nodes_within_reach(seed: int) -> None:
+    """Every node within ``reach`` of a segment is flagged; no node farther than that is."""
+    from injmesh.kernels.raster import near_nodes
+
+    rng = np.random.default_rng(seed)
+    a = rng.random((40, 2))
+    b = a + rng.normal(scale=0.05, size=a.shape)
+    b[0] = a[0]  # a point segment
+    x, y = np.linspace(-0.2, 1.2, 71), np.linspace(-0.1, 1.1, 53)
+    reach = 0.03
+    near = near_nodes(x, y, a, b, reach)
+    X, Y = np.meshgrid(x, y)
+    p = np.stack([X.ravel(), Y.ravel()], axis=1)[:, None, :]
+    ab = b - a
+    t = np.clip(np.einsum("nkj,kj->nk", p - a, ab) / np.maximum(np.einsum("kj,kj->k", ab, ab), 1e-300), 0, 1)
+    dist = np.hypot(*(p - a - t[..., None] * ab).transpose(2, 0, 1)).min(axis=1).reshape(X.shape)
+    assert np.all(near[dist <= reach * (1 - 1e-9)])
+    assert not np.any(near[dist > reach * (1 + 1e-9)])

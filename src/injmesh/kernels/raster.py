@@ -76,3 +76,37 @@ def scan(x: np.ndarray, y: np.ndarray, a: np.ndarray, b: np.ndarray,
                 if row[c] <= x[i] <= row[c + 1]:
                     inside[j, i] = True
     return inside, near
+
+
+@numba.njit(cache=True)
+def near_nodes(x: np.ndarray, y: np.ndarray, a: np.ndarray, b: np.ndarray, reach: float) -> np.ndarray:
+    """Nodes within ``reach`` of a segment ``a[s] -> b[s]`` (distance to the segment itself,
+    not to its box: a band about ``reach`` wide each side of the polylines).
+
+    ``x`` (nx,) and ``y`` (ny,) are uniform, increasing axes.  A node whose rounded distance
+    is a hair above ``reach`` may be left out: callers ask for a margin (see
+    :func:`injmesh.sizing.background.inside_test`).
+    """
+    nx, ny, m = x.shape[0], y.shape[0], a.shape[0]
+    sx = (x[nx - 1] - x[0]) / max(nx - 1, 1)
+    sy = (y[ny - 1] - y[0]) / max(ny - 1, 1)
+    near = np.zeros((ny, nx), dtype=np.bool_)
+    r2 = reach * reach
+    for s in range(m):
+        ax, ay, bx, by = a[s, 0], a[s, 1], b[s, 0], b[s, 1]
+        i0 = max(int(math.floor((min(ax, bx) - reach - x[0]) / sx)), 0)
+        i1 = min(int(math.ceil((max(ax, bx) + reach - x[0]) / sx)), nx - 1)
+        j0 = max(int(math.floor((min(ay, by) - reach - y[0]) / sy)), 0)
+        j1 = min(int(math.ceil((max(ay, by) + reach - y[0]) / sy)), ny - 1)
+        dx, dy = bx - ax, by - ay
+        l2 = dx * dx + dy * dy
+        for j in range(j0, j1 + 1):
+            for i in range(i0, i1 + 1):
+                if near[j, i]:
+                    continue
+                px, py = x[i] - ax, y[j] - ay
+                t = 0.0 if l2 <= 0.0 else min(max((px * dx + py * dy) / l2, 0.0), 1.0)
+                ex, ey = px - t * dx, py - t * dy
+                if ex * ex + ey * ey <= r2:
+                    near[j, i] = True
+    return near

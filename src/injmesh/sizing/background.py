@@ -204,14 +204,8 @@ def _sdf_on_grid(domain: Domain, x: FloatArray, y: FloatArray, spacing: float) -
         return _sdf_chunked(domain, np.stack([X.ravel(), Y.ravel()], axis=1)).reshape(ny, nx)
     from ..kernels.raster import scan
 
-    # Polylines within spacing / 8 of the boundary (arcs are sampled finer than ``spacing`` and
-    # at 16 points per turn at least), cut so that every segment's box is about a cell.
-    loops = [densify(np.asarray(loop, dtype=np.float64), spacing) for loop in brep.boundary_loops(spacing)
-             if len(loop) >= 2]
-    a = np.concatenate(loops) if loops else np.empty((0, 2))
-    b = np.concatenate([np.roll(loop, -1, axis=0) for loop in loops]) if loops else np.empty((0, 2))
     reach = NEAR * spacing
-    inside, near = scan(x, y, a, b, reach)
+    inside, near = scan(x, y, *_polylines(brep, spacing), reach)
     d = np.where(inside, -reach, reach)
     if near.any():
         jj, ii = np.nonzero(near)
@@ -219,30 +213,59 @@ def _sdf_on_grid(domain: Domain, x: FloatArray, y: FloatArray, spacing: float) -
     return d
 
 
+def _polylines(brep: BRep, spacing: float) -> tuple[FloatArray, FloatArray]:
+    """The boundary as segments ``a[s] -> b[s]``: polylines within ``spacing / 8`` of it (arcs
+    are sampled finer than ``spacing`` and at 16 points per turn at least), cut so that every
+    segment's box is about a cell."""
+    loops = [densify(np.asarray(loop, dtype=np.float64), spacing) for loop in brep.boundary_loops(spacing)
+             if len(loop) >= 2]
+    a = np.concatenate(loops) if loops else np.empty((0, 2))
+    b = np.concatenate([np.roll(loop, -1, axis=0) for loop in loops]) if loops else np.empty((0, 2))
+    return a, b
+
+
+#: :func:`inside_test` trusts the sign of the grid nodes farther than this many spacings from
+#: every polyline segment (more than ``1 / sqrt(2) + 1 / 8`` = 0.832, with a margin for
+#: rounding: see there).
+SURE = 0.875
+
+
 def inside_test(domain: Domain, spacing: float) -> Callable[[FloatArray], BoolArray] | None:
     """A fast ``domain.sdf(p) <= 0`` for many points, or None where the plain call is as fast.
 
-    For a domain with an exact boundary (and an sdf more costly than a closed formula), d is
-    sampled once on a grid of ``spacing`` (:func:`_sdf_on_grid`: scanlines, d near the
-    boundary).  A point in a grid cell whose four corners have one sign and ``|d|`` above
-    ``0.75 * spacing`` has that sign too (d is 1-Lipschitz and every point of the cell is within
-    ``spacing / sqrt(2)`` of a corner); only the other points are evaluated.  The answers are
-    those of ``domain.sdf(p) <= 0``.
+    For a domain with an exact boundary (and an sdf more costly than a closed formula), the
+    nodes of a grid of ``spacing`` get their sign from scanlines over the boundary polylines
+    (:func:`_polylines`, :func:`~injmesh.kernels.raster.scan`; no sdf call), and those within
+    ``SURE * spacing`` of a polyline segment are flagged
+    (:func:`~injmesh.kernels.raster.near_nodes`).  A node not flagged is farther than ``(SURE
+    - 1/8) * spacing`` from the boundary (the polylines are within ``spacing / 8`` of it),
+    more than the ``spacing / sqrt(2)`` from a cell's corner to any point of the cell: a point
+    in a cell whose four corners are unflagged and of one sign has that sign too.  Only the
+    other points are evaluated.  The answers are those of ``domain.sdf(p) <= 0``.  (The grid's
+    own d is not needed: 0.4-1 ms of sdf calls saved per node estimate on the paper's cases.)
     """
-    if isinstance(domain, (Circle, Rectangle)) or exact_boundary(domain) is None:
+    if isinstance(domain, (Circle, Rectangle)):
         return None
-    grid = make_background(domain, spacing, check=False)
-    d = grid.d
-    ny, nx = d.shape
-    d00, d10, d01, d11 = d[:-1, :-1], d[:-1, 1:], d[1:, :-1], d[1:, 1:]
-    lo = np.minimum(np.minimum(np.abs(d00), np.abs(d10)), np.minimum(np.abs(d01), np.abs(d11)))
-    neg = (d00 < 0) & (d10 < 0) & (d01 < 0) & (d11 < 0)
-    pos = (d00 > 0) & (d10 > 0) & (d01 > 0) & (d11 > 0)
-    known = (neg | pos) & (lo > 0.75 * grid.spacing)
+    brep = exact_boundary(domain)
+    if brep is None:
+        return None
+    x0, y0, _, _ = domain.bbox
+    nx, ny = cells(domain.bbox, spacing)
+    gx = x0 + spacing * (np.arange(nx, dtype=np.float64) - PAD)
+    gy = y0 + spacing * (np.arange(ny, dtype=np.float64) - PAD)
+    from ..kernels.raster import near_nodes, scan
+
+    a, b = _polylines(brep, float(spacing))
+    sign = scan(gx, gy, a, b, 0.0)[0]
+    far = ~near_nodes(gx, gy, a, b, SURE * float(spacing))
+    s00, s10, s01, s11 = sign[:-1, :-1], sign[:-1, 1:], sign[1:, :-1], sign[1:, 1:]
+    neg = s00 & s10 & s01 & s11
+    pos = ~(s00 | s10 | s01 | s11)
+    known = (neg | pos) & far[:-1, :-1] & far[:-1, 1:] & far[1:, :-1] & far[1:, 1:]
 
     def inside(p: FloatArray) -> BoolArray:
-        i = np.floor((p[:, 0] - grid.x[0]) / grid.spacing)
-        j = np.floor((p[:, 1] - grid.y[0]) / grid.spacing)
+        i = np.floor((p[:, 0] - gx[0]) / spacing)
+        j = np.floor((p[:, 1] - gy[0]) / spacing)
         ok = (i >= 0) & (i < nx - 1) & (j >= 0) & (j < ny - 1)
         ii, jj = np.where(ok, i, 0).astype(np.intp), np.where(ok, j, 0).astype(np.intp)
         sure = ok & known[jj, ii]
