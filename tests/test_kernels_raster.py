@@ -111,3 +111,23 @@ def test_near_nodes_are_the_nodes_within_reach(seed: int) -> None:
     dist = np.hypot(*(p - a - t[..., None] * ab).transpose(2, 0, 1)).min(axis=1).reshape(X.shape)
     assert np.all(near[dist <= reach * (1 - 1e-9)])
     assert not np.any(near[dist > reach * (1 + 1e-9)])
+
+
+def test_cell_signs_are_the_numpy_lookup() -> None:
+    """The compiled cell lookup of the inside test: the cell by ``floor`` of the offsets, the
+    sign where the cell is known, every other point (outside the grid, NaN) left to decide."""
+    from injmesh.kernels.raster import cell_signs
+
+    rng = np.random.default_rng(2)
+    known, neg = rng.random((13, 17)) < 0.7, rng.random((13, 17)) < 0.5
+    p = rng.uniform(-0.3, 2.0, (4000, 2))
+    p[:5] = [[np.nan, 0.5], [0.5, np.inf], [-np.inf, 0.1], [0.1, 0.1], [1.7, 1.3]]
+    x0, y0, s = 0.05, -0.02, 0.1
+    out, rest = cell_signs(p, x0, y0, s, known, neg)
+    with np.errstate(invalid="ignore"):
+        i, j = np.floor((p[:, 0] - x0) / s), np.floor((p[:, 1] - y0) / s)
+        ok = (i >= 0) & (i < 17) & (j >= 0) & (j < 13)
+    ii, jj = np.where(ok, i, 0).astype(np.intp), np.where(ok, j, 0).astype(np.intp)
+    sure = ok & known[jj, ii]
+    assert np.array_equal(rest, np.flatnonzero(~sure))
+    assert np.array_equal(out, np.where(sure, neg[jj, ii], False))

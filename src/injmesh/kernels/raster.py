@@ -110,3 +110,30 @@ def near_nodes(x: np.ndarray, y: np.ndarray, a: np.ndarray, b: np.ndarray, reach
                 if ex * ex + ey * ey <= r2:
                     near[j, i] = True
     return near
+
+
+@numba.njit(cache=True)
+def cell_signs(p: np.ndarray, x0: float, y0: float, spacing: float, known: np.ndarray,
+               neg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The sign of each point ``p (m, 2)`` where its grid cell is ``known`` (cell ``(j, i)``
+    spans ``[x0 + i spacing, x0 + (i + 1) spacing)`` and likewise in y, by ``floor``), and
+    the points whose cell is not known or outside the grid.
+
+    Returns ``inside (m,)`` (``neg`` of the cell; False where not known) and the rows of the
+    points left to decide.
+    """
+    m = p.shape[0]
+    ny, nx = known.shape
+    inside = np.zeros(m, dtype=np.bool_)
+    rest = np.empty(m, dtype=np.int64)
+    k = 0
+    for q in range(m):
+        # Compared as floats, as NumPy would: a NaN or huge coordinate is simply not in a cell.
+        i = np.floor((p[q, 0] - x0) / spacing)
+        j = np.floor((p[q, 1] - y0) / spacing)
+        if i >= 0 and i < nx and j >= 0 and j < ny and known[int(j), int(i)]:
+            inside[q] = neg[int(j), int(i)]
+        else:
+            rest[k] = q
+            k += 1
+    return inside, rest[:k].copy()

@@ -253,7 +253,7 @@ def inside_test(domain: Domain, spacing: float) -> Callable[[FloatArray], BoolAr
     nx, ny = cells(domain.bbox, spacing)
     gx = x0 + spacing * (np.arange(nx, dtype=np.float64) - PAD)
     gy = y0 + spacing * (np.arange(ny, dtype=np.float64) - PAD)
-    from ..kernels.raster import near_nodes, scan
+    from ..kernels.raster import cell_signs, near_nodes, scan
 
     a, b = _polylines(brep, float(spacing))
     sign = scan(gx, gy, a, b, 0.0)[0]
@@ -263,17 +263,17 @@ def inside_test(domain: Domain, spacing: float) -> Callable[[FloatArray], BoolAr
     pos = ~(s00 | s10 | s01 | s11)
     known = (neg | pos) & far[:-1, :-1] & far[:-1, 1:] & far[1:, :-1] & far[1:, 1:]
 
+    known = np.ascontiguousarray(known)
+    neg = np.ascontiguousarray(neg)
+    step = float(spacing)
+
     def inside(p: FloatArray) -> BoolArray:
-        i = np.floor((p[:, 0] - gx[0]) / spacing)
-        j = np.floor((p[:, 1] - gy[0]) / spacing)
-        ok = (i >= 0) & (i < nx - 1) & (j >= 0) & (j < ny - 1)
-        ii, jj = np.where(ok, i, 0).astype(np.intp), np.where(ok, j, 0).astype(np.intp)
-        sure = ok & known[jj, ii]
-        out = np.where(sure, neg[jj, ii], False)
-        rest = np.flatnonzero(~sure)
+        out, rest = cell_signs(np.ascontiguousarray(p, dtype=np.float64), float(gx[0]), float(gy[0]), step,
+                               known, neg)
         if len(rest):
             out[rest] = domain.sdf(p[rest]) <= 0
-        return out
+        out_: BoolArray = out
+        return out_
 
     return inside
 
