@@ -131,3 +131,62 @@ def test_cell_signs_are_the_numpy_lookup() -> None:
     sure = ok & known[jj, ii]
     assert np.array_equal(rest, np.flatnonzero(~sure))
     assert np.array_equal(out, np.where(sure, neg[jj, ii], False))
+
+
+@pytest.mark.parametrize("domain", _domains())
+@pytest.mark.parametrize("cells", [16, 64, 200])
+def test_signs_on_grid_are_the_sdf_signs(domain, cells: int) -> None:
+    """The sign-only grid (sdf next to the polylines only) has the signs of the full grid and
+    of the point-wise sdf."""
+    from injmesh.sizing.background import signs_on_grid
+
+    x0, y0, x1, y1 = domain.bbox
+    s = max(x1 - x0, y1 - y0) / cells
+    x = x0 + s * (np.arange(int((x1 - x0) / s) + 5) - 2)
+    y = y0 + s * (np.arange(int((y1 - y0) / s) + 5) - 2)
+    got = signs_on_grid(domain, x, y, s)
+    assert np.array_equal(got, _sdf_on_grid(domain, x, y, s) <= 0)
+    X, Y = np.meshgrid(x, y)
+    assert np.array_equal(got, domain.sdf(np.stack([X.ravel(), Y.ravel()], axis=1)).reshape(got.shape) <= 0)
+
+
+@pytest.mark.parametrize("cells", [8, 16, 40])
+def test_signs_on_grid_between_a_chord_and_its_arc(cells: int) -> None:
+    """A node between a polyline's chord and the arc it stands for is inside the domain but
+    outside the polygon: the sign-only grid asks the sdf there."""
+    from injmesh.sizing.background import _polylines, exact_boundary, signs_on_grid
+
+    domain = Circle((0.1, -0.2), 1.0) - Circle((0.3, 0.1), 0.3)
+    x0, y0, x1, y1 = domain.bbox
+    s = max(x1 - x0, y1 - y0) / cells
+    a, b = _polylines(exact_boundary(domain), s)
+    hits = 0
+    for k in range(0, len(a), max(1, len(a) // 7)):
+        mid = 0.5 * (a[k] + b[k])
+        nrm = np.array([b[k, 1] - a[k, 1], a[k, 0] - b[k, 0]])  # outward for the outer loop
+        sag = abs(float(domain.sdf(mid[None])[0]))
+        for side in (1.0, -1.0):
+            p = mid + side * 0.5 * sag * nrm / np.hypot(*nrm)
+            x = p[0] + s * np.arange(-int((p[0] - x0) / s) - 2, int((x1 - p[0]) / s) + 3)
+            y = p[1] + s * np.arange(-int((p[1] - y0) / s) - 2, int((y1 - p[1]) / s) + 3)
+            X, Y = np.meshgrid(x, y)
+            full = domain.sdf(np.stack([X.ravel(), Y.ravel()], axis=1)).reshape(X.shape) <= 0
+            assert np.array_equal(signs_on_grid(domain, x, y, s), full)
+            hits += 1
+    assert hits > 0
+
+
+@pytest.mark.parametrize("domain", _domains())
+def test_sign_only_backgrounds_have_the_full_grids_signs(domain) -> None:
+    """A background sampled for its signs alone has the inside nodes and the band of the full
+    one, and the loops traced from it (which sample d again) are the full grid's."""
+    from injmesh.sizing.background import make_background
+    from injmesh.sizing.features import _loops
+
+    x0, y0, x1, y1 = domain.bbox
+    s = max(x1 - x0, y1 - y0) / 150
+    full = make_background(domain, s, check=False)
+    signs = make_background(domain, s, check=False, signs_only=True)
+    assert np.array_equal(signs.inside, full.inside) and np.array_equal(signs.band, full.band)
+    a, b = _loops(domain, signs), _loops(domain, full)
+    assert len(a) == len(b) and all(np.array_equal(p, q) for p, q in zip(a, b, strict=True))

@@ -137,7 +137,9 @@ def _loops(domain: Domain, grid: Background) -> list[FloatArray]:
         return list(domain.boundary_loops(0.5 * grid.spacing))
     from ..geometry.tracing import loops_from_grid
 
-    return [domain.project(loop) for loop in loops_from_grid(grid.x, grid.y, grid.d)]
+    # Tracing interpolates d between nodes: a grid of signs alone is sampled again.
+    d = make_background(domain, grid.spacing, grid.capped, check=False).d if grid.signs_only else grid.d
+    return [domain.project(loop) for loop in loops_from_grid(grid.x, grid.y, d)]
 
 
 def _boundary(domain: Domain, grid: Background, loops: list[FloatArray] | None = None) -> Segments:
@@ -845,7 +847,9 @@ def effective_size(
         # The margin is that of the grid the feature size would be computed on.
         fine = min(lo / CELLS_PER_H, dom.diameter / FEATURE_CELLS)
         if _thick(dom, bound, n_layers, angle, fine, _probe_h(h, dom)):
-            grid, h0 = sampled_grid(h, dom, None, int(max_cells), rate_, h_min=lo)
+            # Kept only if thick (then only its signs, spacing and h are read: no feature
+            # grid, no traced loops), so d's magnitudes need not be sampled.
+            grid, h0 = sampled_grid(h, dom, None, int(max_cells), rate_, h_min=lo, signs_only=True)
             # A grid refined below the probe's h_min / 4 (smaller sizes, a thin domain) is
             # a case for the full computation.
             thick = float(h0[grid.inside].max()) <= bound and grid.spacing >= lo / CELLS_PER_H
