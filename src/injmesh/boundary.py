@@ -886,15 +886,38 @@ def _nearest_segments(
     end, so only the segments whose midpoints lie in that ball are measured (a uniform grid of
     the midpoints, :func:`injmesh.kernels.outline.points_in_balls`).
     Segments more than ``4x`` the median length would make every ball large: they are measured
-    against every point, in chunks.
+    against every point, in chunks.  Up to ``BRUTE_PAIRS`` point-segment pairs (a polygon's
+    corners against its loop: a few hundred segments), every pair is measured in one compiled
+    pass instead (:func:`~injmesh.kernels.outline.nearest_segments_brute`, the same numbers:
+    the balls hold every segment that can be nearest, the others are farther by their margin).
     """
+    m = len(q)
+    if m == 0:
+        return np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0)
+    if m * len(a) <= BRUTE_PAIRS:
+        from .kernels.outline import nearest_segments_brute
+
+        seg, t, d = nearest_segments_brute(np.ascontiguousarray(q, dtype=np.float64),
+                                           np.ascontiguousarray(a, dtype=np.float64),
+                                           np.ascontiguousarray(ab, dtype=np.float64),
+                                           np.ascontiguousarray(ab2, dtype=np.float64))
+        return np.asarray(seg, dtype=np.intp), t, d
+    return _nearest_segments_search(q, a, ab, ab2)
+
+
+#: :func:`_nearest_segments` measures every pair up to this many point-segment pairs.
+BRUTE_PAIRS = 1 << 16
+
+
+def _nearest_segments_search(
+    q: FloatArray, a: FloatArray, ab: FloatArray, ab2: FloatArray
+) -> tuple[IntArray, FloatArray, FloatArray]:
+    """:func:`_nearest_segments` by the balls around the points (any number of them)."""
     from scipy.spatial import cKDTree
 
     from .kernels.outline import points_in_balls
 
     m = len(q)
-    if m == 0:
-        return np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0)
     length = np.sqrt(ab2)
     long = length > 4.0 * float(np.median(length))
     rows, cols = [np.empty(0, dtype=np.intp)], [np.empty(0, dtype=np.intp)]

@@ -555,3 +555,26 @@ def threaded_corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
 
     threads.each(n, run)
     return out
+
+
+@nb.njit(cache=True)
+def nearest_segments_brute(q, a, ab, ab2):  # type: ignore[no-untyped-def]
+    """The nearest segment ``a[i] -> a[i] + ab[i]`` of each point of ``q (m, 2)``, trying every
+    segment (for few points and segments): its index (the lowest on a tie), the foot's
+    parameter t (clamped to [0, 1]) and the distance.  The numbers of ``boundary
+    ._nearest_segments``'s NumPy form: ``t = clip(((q - a) . ab) / ab2, 0, 1)``, the foot
+    ``a + t ab``, a hypot."""
+    m, n = q.shape[0], a.shape[0]
+    seg = np.zeros(m, dtype=np.int64)
+    out_t = np.zeros(m)
+    out_d = np.full(m, np.inf)
+    for i in range(m):
+        qx, qy = q[i, 0], q[i, 1]
+        for j in range(n):
+            t = ((qx - a[j, 0]) * ab[j, 0] + (qy - a[j, 1]) * ab[j, 1]) / ab2[j]
+            # As np.clip clamps: -0.0 becomes 0.0, a NaN stays.
+            t = 0.0 if t <= 0.0 else (1.0 if t >= 1.0 else t)
+            d = math.hypot(qx - (a[j, 0] + t * ab[j, 0]), qy - (a[j, 1] + t * ab[j, 1]))
+            if d < out_d[i]:
+                seg[i], out_t[i], out_d[i] = j, t, d
+    return seg, out_t, out_d
