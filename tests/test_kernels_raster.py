@@ -190,3 +190,21 @@ def test_sign_only_backgrounds_have_the_full_grids_signs(domain) -> None:
     assert np.array_equal(signs.inside, full.inside) and np.array_equal(signs.band, full.band)
     a, b = _loops(domain, signs), _loops(domain, full)
     assert len(a) == len(b) and all(np.array_equal(p, q) for p, q in zip(a, b, strict=True))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_quarter_samples_are_the_numpy_form(seed: int) -> None:
+    """The node estimate's jittered samples, compiled: the NumPy form's numbers bit for bit."""
+    from injmesh.kernels.raster import quarter_samples
+
+    quarter = np.array([[-0.25, -0.25], [0.25, -0.25], [-0.25, 0.25], [0.25, 0.25]])
+    r2 = np.array([0.7548776662466927, 0.5698402909980532])
+    rng = np.random.default_rng(seed)
+    for _ in range(20):
+        k = int(rng.integers(0, 3000))
+        side = float(rng.random() * 10 ** rng.uniform(-6, 3))
+        centres = rng.normal(size=(k, 2)) * 10 ** rng.uniform(-3, 3)
+        c = np.arange(k)
+        jitter = np.stack([(c * r2[0]) % 1.0, (c * r2[1]) % 1.0], axis=1) - 0.5
+        ref = (centres[None, :, :] + side * (quarter[:, None, :] + 0.5 * jitter[None, :, :])).reshape(-1, 2)
+        assert np.array_equal(quarter_samples(centres, side, quarter, r2).view(np.int64), ref.view(np.int64))

@@ -100,16 +100,18 @@ def estimate_nodes(
     centres = np.stack([x0 + (i.ravel() + 0.5) * side, y0 + (j.ravel() + 0.5) * side], axis=1)
     # The quarters' centres; each sample is jittered within its quarter (see below).
     quarter = np.array([[-0.25, -0.25], [0.25, -0.25], [-0.25, 0.25], [0.25, 0.25]])
+    r2 = np.array([0.7548776662466927, 0.5698402909980532])
     per_node = np.sqrt(3) / 2
     total, h_min, used, any_inside = 0.0, np.inf, 0, False
+    from .kernels.raster import quarter_samples
+
     for _ in range(60):
         k = len(centres)
         # Each quarter sampled at a point jittered within it by a low-discrepancy sequence
         # (R2) over the cells: a feature of h aligned with the grid (a band along x = 0.5) is
-        # not missed by every cell at once, and the result stays deterministic.
-        c = np.arange(k)
-        jitter = np.stack([(c * 0.7548776662466927) % 1.0, (c * 0.5698402909980532) % 1.0], axis=1) - 0.5
-        q = (centres[None, :, :] + side * (quarter[:, None, :] + 0.5 * jitter[None, :, :])).reshape(-1, 2)
+        # not missed by every cell at once, and the result stays deterministic.  Compiled
+        # (0.3 ms of NumPy temporaries for the first 16,384 samples).
+        q = quarter_samples(np.ascontiguousarray(centres, dtype=np.float64), float(side), quarter, r2)
         inside = fast_inside(q) if fast_inside is not None else domain.sdf(q) <= 0
         flat = np.full(len(q), np.inf)
         if inside.any():

@@ -2,10 +2,13 @@
 
 * :func:`gap_pairs` -- the vertex pairs across a possible gap, :func:`thinnest_gap`'s quick
   first pass (:func:`injmesh.sizing.features.thinnest_gap`).
-* :func:`nearest_vertices` -- the k nearest boundary vertices of many points, exactly (the
-  feature grid's nearest boundary points).
+* :func:`nearest_vertices` -- the k nearest boundary vertices of many points, exactly, and
+  :func:`nearest_feet` -- the nearest boundary point among their segments (the feature grid's
+  nearest boundary points).
+* :func:`gather_feet`, :func:`feature_values` -- the feature grid's per-node steps, the numbers
+  of their NumPy form.
 
-Both bucket the vertices in a uniform grid of cells (:func:`injmesh.kernels.outline._cells`).
+The searches bucket the vertices in a uniform grid of cells (:func:`injmesh.kernels.outline._cells`).
 """
 
 from __future__ import annotations

@@ -4,7 +4,10 @@ A background grid of a domain with an exact boundary needs the signed distance o
 boundary: farther away the sign is all that is read.  :func:`scan` gives the sign of every node
 by the even-odd rule along each grid row (one pass over the segments, then a sort of each row's
 crossings) and marks the nodes within a given distance of a segment's bounding box, which the
-caller evaluates exactly.  Linear in nodes plus segments; deterministic.
+caller evaluates exactly.  Linear in nodes plus segments; deterministic.  :func:`near_nodes`
+marks the nodes within a distance of the segments themselves (a band as wide as asked), and
+:func:`cell_signs` is the per-point cell lookup of the node estimate's inside test
+(:func:`injmesh.sizing.background.inside_test`).
 """
 
 from __future__ import annotations
@@ -137,3 +140,20 @@ def cell_signs(p: np.ndarray, x0: float, y0: float, spacing: float, known: np.nd
             rest[k] = q
             k += 1
     return inside, rest[:k].copy()
+
+
+@numba.njit(cache=True)
+def quarter_samples(centres: np.ndarray, side: float, quarter: np.ndarray, r2: np.ndarray) -> np.ndarray:
+    """The node estimate's samples (:func:`injmesh.boundary.estimate_nodes`): for each quarter
+    q of each cell c (``quarter (4, 2)`` offsets in cells, quarter-major), ``centres[c] + side
+    (quarter[q] + 0.5 j_c)`` with the jitter ``j_c = (c r2) mod 1 - 0.5`` of the R2 sequence;
+    the numbers of its NumPy form, ``(4 k, 2)``."""
+    k = centres.shape[0]
+    out = np.empty((quarter.shape[0] * k, 2))
+    for c in range(k):
+        jx = (c * r2[0]) % 1.0 - 0.5
+        jy = (c * r2[1]) % 1.0 - 0.5
+        for q in range(quarter.shape[0]):
+            out[q * k + c, 0] = centres[c, 0] + side * (quarter[q, 0] + 0.5 * jx)
+            out[q * k + c, 1] = centres[c, 1] + side * (quarter[q, 1] + 0.5 * jy)
+    return out
