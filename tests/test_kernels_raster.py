@@ -208,3 +208,31 @@ def test_quarter_samples_are_the_numpy_form(seed: int) -> None:
         jitter = np.stack([(c * r2[0]) % 1.0, (c * r2[1]) % 1.0], axis=1) - 0.5
         ref = (centres[None, :, :] + side * (quarter[:, None, :] + 0.5 * jitter[None, :, :])).reshape(-1, 2)
         assert np.array_equal(quarter_samples(centres, side, quarter, r2).view(np.int64), ref.view(np.int64))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_densify_is_the_numpy_form(seed: int) -> None:
+    """Closed polylines cut into pieces no longer than the step, compiled: the NumPy form's
+    vertices bit for bit (repeated vertices, a single vertex and an empty loop included)."""
+    from injmesh.sizing.background import densify
+
+    def numpy_form(loop: np.ndarray, step: float) -> np.ndarray:
+        nxt = np.roll(loop, -1, axis=0)
+        pieces = np.maximum(1, np.ceil(np.hypot(*(nxt - loop).T) / step)).astype(np.intp)
+        start = np.repeat(loop, pieces, axis=0)
+        delta = np.repeat(nxt - loop, pieces, axis=0)
+        t = np.arange(int(pieces.sum())) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+        return start + (t / np.repeat(pieces, pieces))[:, None] * delta
+
+    rng = np.random.default_rng(seed)
+    for trial in range(100):
+        n = int(rng.integers(0, 200))
+        scale = 10 ** rng.uniform(-3, 3)
+        loop = rng.normal(size=(n, 2)) * scale
+        if trial % 3 == 0:
+            loop = np.round(loop, 1)
+        if trial % 5 == 0 and n > 2:
+            loop[1] = loop[0]
+        step = scale * float(10 ** rng.uniform(-2, 1))
+        got, ref = densify(loop, step), numpy_form(loop, step)
+        assert got.shape == ref.shape and np.array_equal(got.view(np.int64), ref.view(np.int64))

@@ -157,3 +157,30 @@ def quarter_samples(centres: np.ndarray, side: float, quarter: np.ndarray, r2: n
             out[q * k + c, 0] = centres[c, 0] + side * (quarter[q, 0] + 0.5 * jx)
             out[q * k + c, 1] = centres[c, 1] + side * (quarter[q, 1] + 0.5 * jy)
     return out
+
+
+@numba.njit(cache=True)
+def densify(loop: np.ndarray, step: float) -> np.ndarray:
+    """A closed polyline ``loop (n, 2)`` with extra vertices so that no segment is longer than
+    ``step``: each segment cut into ``max(1, ceil(length / step))`` equal pieces, vertex k of a
+    piece at ``a + (k / pieces) (b - a)`` (:func:`injmesh.sizing.background.densify`; the
+    numbers of its NumPy form)."""
+    n = loop.shape[0]
+    pieces = np.empty(n, dtype=np.int64)
+    total = 0
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        cut = np.ceil(math.hypot(loop[j, 0] - loop[i, 0], loop[j, 1] - loop[i, 1]) / step)
+        pieces[i] = int(max(1.0, cut))
+        total += pieces[i]
+    out = np.empty((total, 2))
+    m = 0
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        dx, dy = loop[j, 0] - loop[i, 0], loop[j, 1] - loop[i, 1]
+        for k in range(pieces[i]):
+            frac = k / pieces[i]
+            out[m, 0] = loop[i, 0] + frac * dx
+            out[m, 1] = loop[i, 1] + frac * dy
+            m += 1
+    return out
