@@ -749,6 +749,22 @@ def test_medial_kernels_are_the_numpy_form(seed: int, ny: int, nx: int, snap: fl
     assert np.array_equal(r, r_ref) and np.array_equal(axis, axis_ref)
 
 
+@settings(max_examples=300, deadline=None)
+@given(st.floats(-1e3, 1e3), st.floats(-1e3, 1e3),
+       st.sampled_from([0.0, 1e-300, 1e-17, 1e-16, 1e-12, 1e-9, 1e-3]), st.booleans(),
+       st.sampled_from([1.0, 1e-140, 1e140]))
+def test_longer_is_the_hypot_test(dx: float, dy: float, rel: float, below: bool, scale: float) -> None:
+    """The candidates' jump test from the squares, with the hypot where they are too close to
+    call: the answer of ``hypot(dx, dy) > length`` (the libm hypot NumPy and the kernels call)
+    at lengths within a hair of the hypot."""
+    from injmesh.kernels.feature import _longer
+
+    dx, dy = dx * scale, dy * scale
+    g = float(np.hypot(dx, dy))
+    for length in (g * (1.0 - rel if below else 1.0 + rel), g, np.nextafter(g, 0.0), np.nextafter(g, np.inf)):
+        assert _longer(dx, dy, float(length)) == bool(np.hypot(dx, dy) > length)
+
+
 # --- plain signed distances: the traced boundary stands in for the exact one -----------------
 
 
