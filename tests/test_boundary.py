@@ -312,6 +312,30 @@ def test_nearest_segments_agree_with_brute_force() -> None:
         assert np.array_equal(dist[np.arange(len(q)), seg], d)
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_nearest_segments_every_pair_is_the_ball_search(seed: int) -> None:
+    """Few points and segments are measured pair by pair (compiled): the ball search's index,
+    parameter and distance bit for bit, ties (points and vertices on a lattice) included."""
+    from injmesh.boundary import _nearest_segments_search
+    from injmesh.kernels.outline import nearest_segments_brute
+
+    rng = np.random.default_rng(seed)
+    for trial in range(60):
+        n, m = int(rng.integers(3, 300)), int(rng.integers(1, 60))
+        a = rng.normal(size=(n, 2))
+        if trial % 2:
+            a[: n // 2] *= 0.01
+        if trial % 3 == 0:
+            a = np.round(a * 4) / 4
+        ab = np.roll(a, -1, axis=0) - a
+        ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+        q = np.concatenate([rng.normal(size=(m, 2)), a[rng.integers(0, n, size=5)],
+                            np.round(rng.normal(size=(m, 2)) * 8) / 8, np.zeros((1, 2))])
+        for got, ref in zip(nearest_segments_brute(q, a, ab, ab2), _nearest_segments_search(q, a, ab, ab2),
+                            strict=True):
+            assert np.array_equal(np.asarray(got).view(np.int64), np.asarray(ref).view(np.int64))
+
+
 def test_nearest_segments_with_short_segments_far_apart() -> None:
     # Short segments at the two ends of long ones (a huge grid of cells if its cells were as
     # wide as the short segments), and points on a lattice of equal distances (ties).

@@ -556,6 +556,84 @@ def test_nearest_vertices_are_exact(seed: int, n: int, m: int, layout: str, cell
     assert np.array_equal(dist, ref_dist) and np.array_equal(foot, ref_foot)
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 10**6), st.integers(4, 80), st.integers(1, 200), st.booleans())
+def test_nearest_feet_answer_ties_only_where_the_order_cannot_matter(seed: int, n: int, m: int,
+                                                                     grid: bool) -> None:
+    """Where the compiled search answers a point whose nearest vertices are (nearly) equally
+    far, the answer is the same for every order of them: the three nearest by squared
+    distance with ties broken either way (lowest or highest index first) give it bit for
+    bit; elsewhere it is the plain nearest-of-segments answer."""
+    from injmesh.kernels.feature import nearest_feet, nearest_vertices
+    from injmesh.kernels.outline import nearest_of_segments
+    from injmesh.sizing.features import NEAREST_RINGS, NEAREST_TIE
+
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.random(n)) * 2 * np.pi
+    v = np.stack([np.cos(t), np.sin(t)], axis=1)
+    p = rng.uniform(-1.2, 1.2, (m, 2))
+    if grid:  # a square's walls and grid nodes: equidistant vertices
+        side = np.arange(n) / n
+        v = np.concatenate([np.stack([side, 0 * side], 1), np.stack([1 + 0 * side, side], 1),
+                            np.stack([1 - side, 1 + 0 * side], 1), np.stack([0 * side, 1 - side], 1)])
+        p = np.round(rng.uniform(-0.2, 1.2, (m, 2)) * n) / n
+    v = np.ascontiguousarray(v)
+    seg_b = np.ascontiguousarray(np.roll(v, -1, axis=0))
+    prev = (np.arange(len(v)) - 1) % len(v)
+    size = 2.0 / np.sqrt(len(v))
+    dist, foot, status = nearest_feet(p, v, seg_b, prev, 3, size, NEAREST_TIE, NEAREST_RINGS)
+    _, old_status = nearest_vertices(p, v, 3, size, NEAREST_TIE, NEAREST_RINGS)
+    assert np.all((status == 0) | (status == old_status))
+    d2 = ((p[:, None, :] - v[None, :, :]) ** 2).sum(axis=2)
+    idx = np.arange(len(v))[None, :].repeat(len(p), 0)
+    for near in (np.lexsort((idx, d2))[:, :3], np.lexsort((-idx, d2))[:, :3]):
+        d, f = nearest_of_segments(p, np.concatenate([near, prev[near]], axis=1), v, seg_b)
+        ok = status == 0
+        assert np.array_equal(d[ok], dist[ok]) and np.array_equal(f[ok], foot[ok])
+
+
+def test_nearest_feet_settle_most_ties_of_straight_walls() -> None:
+    """Grid nodes against the paper's four-hole square (walls traced on the grid, then
+    projected): the vertex a node projects onto and its two equidistant neighbours are the
+    three nearest in either order, with one foot; the compiled search answers most of the
+    points it used to leave to the tree."""
+    from injmesh.cases import CASES
+    from injmesh.kernels.feature import nearest_feet, nearest_vertices
+    from injmesh.sizing.background import make_background
+    from injmesh.sizing.features import NEAREST_RINGS, NEAREST_TIE, _boundary
+
+    domain = CASES["square_with_four_holes"].geometry
+    grid = make_background(domain, domain.diameter / 200)
+    seg_a, seg_b, prev = _boundary(domain, grid)
+    p = grid.nodes(grid.inside | grid.band)
+    size = 2.0 / np.sqrt(len(seg_a))
+    _, old_status = nearest_vertices(p, seg_a, 3, size, NEAREST_TIE, NEAREST_RINGS)
+    _, _, status = nearest_feet(p, seg_a, seg_b, prev.astype(np.int64), 3, size, NEAREST_TIE, NEAREST_RINGS)
+    assert np.sum(status == 1) < 0.5 * np.sum(old_status == 1)
+
+
+def test_feature_values_are_the_numpy_form() -> None:
+    """The compiled last step of the feature grid (d_MA to the nearest crossing, 2 (r + d_MA),
+    clipped) and its gather of the seeds' feet are the NumPy form's numbers bit for bit."""
+    from injmesh.kernels.feature import feature_values, gather_feet
+
+    rng = np.random.default_rng(5)
+    ny, nx = 23, 31
+    x, y = np.cumsum(rng.random(nx)), np.cumsum(rng.random(ny))
+    r = rng.random((ny, nx)) * 3
+    axis = rng.random((ny, nx, 2)) * 20
+    mj, mi = rng.integers(0, ny, (ny, nx)).astype(np.int32), rng.integers(0, nx, (ny, nx)).astype(np.int32)
+    inside = rng.random((ny, nx)) < 0.6
+    near = inside | (rng.random((ny, nx)) < 0.2)
+    fs = feature_values(x, y, r, axis, mj, mi, inside, near, 0.5, 30.0)
+    at = axis[mj, mi]
+    d_ma = np.hypot(x[None, :] - at[..., 0], y[:, None] - at[..., 1])
+    ref = np.full((ny, nx), np.inf)
+    ref[near] = np.clip(2.0 * (np.where(inside[near], r[near], -r[near]) + d_ma[near]), 0.5, 30.0)
+    assert np.array_equal(fs, ref)
+    assert np.array_equal(gather_feet(axis, mj, mi), axis[mj, mi])
+
+
 def _nearest_reference_k(p, seg_a, seg_b, prev, k):
     """:func:`_nearest_reference` with ``k`` nearest vertices (fewer than three vertices)."""
     from scipy.spatial import cKDTree
@@ -669,6 +747,22 @@ def test_medial_kernels_are_the_numpy_form(seed: int, ny: int, nx: int, snap: fl
     marked, r, axis = medial_marks(x, y, feet, inside, 0.1, limit)
     assert np.array_equal(todo, todo_ref) and np.array_equal(marked, marked_ref)
     assert np.array_equal(r, r_ref) and np.array_equal(axis, axis_ref)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(-1e3, 1e3), st.floats(-1e3, 1e3),
+       st.sampled_from([0.0, 1e-300, 1e-17, 1e-16, 1e-12, 1e-9, 1e-3]), st.booleans(),
+       st.sampled_from([1.0, 1e-140, 1e140]))
+def test_longer_is_the_hypot_test(dx: float, dy: float, rel: float, below: bool, scale: float) -> None:
+    """The candidates' jump test from the squares, with the hypot where they are too close to
+    call: the answer of ``hypot(dx, dy) > length`` (the libm hypot NumPy and the kernels call)
+    at lengths within a hair of the hypot."""
+    from injmesh.kernels.feature import _longer
+
+    dx, dy = dx * scale, dy * scale
+    g = float(np.hypot(dx, dy))
+    for length in (g * (1.0 - rel if below else 1.0 + rel), g, np.nextafter(g, 0.0), np.nextafter(g, np.inf)):
+        assert _longer(dx, dy, float(length)) == bool(np.hypot(dx, dy) > length)
 
 
 # --- plain signed distances: the traced boundary stands in for the exact one -----------------

@@ -216,3 +216,75 @@ def test_first_pass_shortcut_leaves_the_limit_unchanged() -> None:
         assert np.all(np.abs(np.diff(out, axis=1)) <= rate * 0.01 * (1 + 1e-9))
         if slope < rate:
             assert np.array_equal(out[10:, 10:], h0[10:, 10:])
+
+
+def _textbook_limit(h0: np.ndarray, dx: float, dy: float, rate: float) -> np.ndarray:
+    """Fast marching as the textbook writes it (``heapq``, stale entries skipped): every node
+    whose update from its neighbours' h0 is below its h0 starts tentative, nodes are accepted
+    in the order of (key, node number), and each accepted node updates its neighbours from
+    those not tentative."""
+    import heapq
+
+    from injmesh.kernels.fastmarch import _update
+
+    ny, nx = h0.shape
+    key = h0.ravel().copy()
+    tentative = np.zeros(ny * nx, dtype=bool)
+
+    def update(node: int) -> float:
+        j, i = divmod(node, nx)
+        xs = [key[node + s] for s, ok in ((-1, i > 0), (1, i < nx - 1)) if ok and not tentative[node + s]]
+        ys = [key[node + s] for s, ok in ((-nx, j > 0), (nx, j < ny - 1)) if ok and not tentative[node + s]]
+        return float(_update(min(xs, default=np.inf), min(ys, default=np.inf), rate * dx, rate * dy))
+
+    heap = []
+    for node in range(ny * nx):
+        u = update(node)
+        if u < key[node]:
+            key[node] = u
+            tentative[node] = True
+            heap.append((u, node))
+    heapq.heapify(heap)
+    while heap:
+        k, node = heapq.heappop(heap)
+        if not tentative[node] or k != key[node]:
+            continue
+        tentative[node] = False
+        j, i = divmod(node, nx)
+        around = ((node - 1, i > 0), (node + 1, i < nx - 1), (node - nx, j > 0), (node + nx, j < ny - 1))
+        for nb, ok in around:
+            if ok and key[nb] > key[node]:
+                u = update(nb)
+                if u < key[nb]:
+                    key[nb] = u
+                    tentative[nb] = True
+                    heapq.heappush(heap, (u, nb))
+    return key.reshape(ny, nx)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    ny=st.integers(1, 30),
+    nx=st.integers(1, 30),
+    rate=st.sampled_from([0.1, 0.2, 0.3, 1.0]),
+    coarse=st.booleans(),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_kernel_is_the_textbook_march_bit_for_bit(ny: int, nx: int, rate: float, coarse: bool,
+                                                  seed: int) -> None:
+    """The kernel's heap (keys beside the nodes, several children per node) and its first-pass
+    shortcut change only how fast nodes are accepted, not which comes first: the output is the
+    textbook algorithm's, bit for bit, ties (rounded sizes) included."""
+    from injmesh.kernels.fastmarch import limit_gradient
+
+    rng = np.random.default_rng(seed)
+    h0 = rng.uniform(0.01, 1.0, (ny, nx))
+    if coarse:
+        h0 = np.round(h0, 1) + 0.1  # many equal keys: the node number decides
+    h0[rng.uniform(size=(ny, nx)) < 0.3] = np.inf
+    if not np.isfinite(h0).any():
+        h0[0, 0] = 0.5
+    dx = float(rng.uniform(0.01, 0.1))
+    dy = dx if seed % 2 else float(rng.uniform(0.01, 0.1))
+    out = limit_gradient(h0, dx, dy, rate)
+    assert np.array_equal(out.view(np.int64), _textbook_limit(h0, dx, dy, rate).view(np.int64))

@@ -21,12 +21,12 @@ its algorithm (no NumPy twin) and is deterministic: same inputs, bit-identical o
   corner cones of ``boundary.corner_size`` (exact: a k-d tree, and per grid cell the leaves
   that can hold the minimum).
 * :mod:`injmesh.kernels.raster` -- inside/outside of background grid nodes by scanlines over
-  an exact boundary.
+  an exact boundary, the nodes within a distance of it, and the inside test's cell lookup.
 * :mod:`injmesh.kernels.gaps` -- the thinnest chord from each vertex of a region's wall to a
   facing wall (the regions' feature size).
 * :mod:`injmesh.kernels.feature` -- the feature size's searches over boundary polylines: the
-  k nearest vertices of the grid nodes (exact, on a grid of cells) and the vertex pairs across a
-  possible gap.
+  k nearest vertices of the grid nodes (exact, on a grid of cells) and their nearest boundary
+  points, the vertex pairs across a possible gap, and the feature grid's per-node steps.
 
 Every kernel is ``@njit(cache=True)``: the first call compiles (tens of seconds for the whole
 Delaunay module on a cold cache) and later processes load the machine code from

@@ -26,42 +26,58 @@ import numpy as np
 
 
 @numba.njit(cache=True, inline="always")
-def _less(key: np.ndarray, a: int, b: int) -> bool:
+def _less(key_a: float, node_a: int, key_b: float, node_b: int) -> bool:
     # Ties broken by node number: the acceptance order, hence the output, is deterministic.
-    return key[a] < key[b] or (key[a] == key[b] and a < b)
+    return key_a < key_b or (key_a == key_b and node_a < node_b)
+
+
+#: Children per node of the heap.  The order in which nodes are accepted is the order of
+#: (key, node number), whatever the heap's shape: a wider heap only makes fewer, more local
+#: moves (the keys are kept in the heap itself, beside the nodes, for the same reason).
+ARITY = 4
 
 
 @numba.njit(cache=True)
-def _sift_up(heap: np.ndarray, pos: np.ndarray, key: np.ndarray, k: int) -> None:
-    node = heap[k]
+def _sift_up(hkey: np.ndarray, hnode: np.ndarray, pos: np.ndarray, k: int) -> None:
+    key = hkey[k]
+    node = hnode[k]
     while k > 0:
-        parent = (k - 1) >> 1
-        other = heap[parent]
-        if not _less(key, node, other):
+        parent = (k - 1) // ARITY
+        if not _less(key, node, hkey[parent], hnode[parent]):
             break
-        heap[k] = other
-        pos[other] = k
+        hkey[k] = hkey[parent]
+        hnode[k] = hnode[parent]
+        pos[hnode[k]] = k
         k = parent
-    heap[k] = node
+    hkey[k] = key
+    hnode[k] = node
     pos[node] = k
 
 
 @numba.njit(cache=True)
-def _sift_down(heap: np.ndarray, pos: np.ndarray, key: np.ndarray, k: int, size: int) -> None:
-    node = heap[k]
+def _sift_down(hkey: np.ndarray, hnode: np.ndarray, pos: np.ndarray, k: int, size: int) -> None:
+    key = hkey[k]
+    node = hnode[k]
     while True:
-        child = 2 * k + 1
-        if child >= size:
+        first = ARITY * k + 1
+        if first >= size:
             break
-        if child + 1 < size and _less(key, heap[child + 1], heap[child]):
-            child += 1
-        other = heap[child]
-        if not _less(key, other, node):
+        child = first
+        ckey = hkey[first]
+        cnode = hnode[first]
+        for c in range(first + 1, min(first + ARITY, size)):
+            if _less(hkey[c], hnode[c], ckey, cnode):
+                child = c
+                ckey = hkey[c]
+                cnode = hnode[c]
+        if not _less(ckey, cnode, key, node):
             break
-        heap[k] = other
-        pos[other] = k
+        hkey[k] = ckey
+        hnode[k] = cnode
+        pos[cnode] = k
         k = child
-    heap[k] = node
+    hkey[k] = key
+    hnode[k] = node
     pos[node] = k
 
 
@@ -182,7 +198,9 @@ def limit_gradient(h0: np.ndarray, dx: float, dy: float, rate: float) -> np.ndar
     n = ny * nx
     flat0 = np.ascontiguousarray(h0).ravel()
     key = flat0.copy()
-    heap = np.empty(n, dtype=np.int64)
+    # The heap of tentative nodes, with their keys beside them.
+    hnode = np.empty(n, dtype=np.int64)
+    hkey = np.empty(n)
     pos = np.full(n, -1, dtype=np.int64)  # place in the heap, -1 when not tentative
     gx = rate * dx
     gy = rate * dy
@@ -195,19 +213,21 @@ def limit_gradient(h0: np.ndarray, dx: float, dy: float, rate: float) -> np.ndar
         u = _update(a, b, gx, gy)
         if u < key[node]:
             key[node] = u
-            heap[size] = node
+            hnode[size] = node
+            hkey[size] = u
             pos[node] = size
             size += 1
-    for k in range(size // 2 - 1, -1, -1):
-        _sift_down(heap, pos, key, k, size)
+    for k in range((size - 2) // ARITY, -1, -1):
+        _sift_down(hkey, hnode, pos, k, size)
     while size > 0:
-        node = heap[0]
+        node = hnode[0]
         size -= 1
         pos[node] = -1
         if size > 0:
-            heap[0] = heap[size]
-            pos[heap[0]] = 0
-            _sift_down(heap, pos, key, 0, size)
+            hnode[0] = hnode[size]
+            hkey[0] = hkey[size]
+            pos[hnode[0]] = 0
+            _sift_down(hkey, hnode, pos, 0, size)
         j = node // nx
         i = node - j * nx
         for m in range(4):
@@ -233,8 +253,9 @@ def limit_gradient(h0: np.ndarray, dx: float, dy: float, rate: float) -> np.ndar
             if u < key[nb]:
                 key[nb] = u
                 if pos[nb] < 0:
-                    heap[size] = nb
+                    hnode[size] = nb
                     pos[nb] = size
                     size += 1
-                _sift_up(heap, pos, key, pos[nb])
+                hkey[pos[nb]] = u
+                _sift_up(hkey, hnode, pos, pos[nb])
     return key.reshape(ny, nx)

@@ -2,10 +2,13 @@
 
 * :func:`gap_pairs` -- the vertex pairs across a possible gap, :func:`thinnest_gap`'s quick
   first pass (:func:`injmesh.sizing.features.thinnest_gap`).
-* :func:`nearest_vertices` -- the k nearest boundary vertices of many points, exactly (the
-  feature grid's nearest boundary points).
+* :func:`nearest_vertices` -- the k nearest boundary vertices of many points, exactly, and
+  :func:`nearest_feet` -- the nearest boundary point among their segments (the feature grid's
+  nearest boundary points).
+* :func:`gather_feet`, :func:`feature_values` -- the feature grid's per-node steps, the numbers
+  of their NumPy form.
 
-Both bucket the vertices in a uniform grid of cells (:func:`injmesh.kernels.outline._cells`).
+The searches bucket the vertices in a uniform grid of cells (:func:`injmesh.kernels.outline._cells`).
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import math
 import numba as nb
 import numpy as np
 
-from .outline import _cells
+from .outline import _cells, segment_foot
 
 
 @nb.njit(cache=True)
@@ -69,6 +72,56 @@ def gap_pairs(v, normal, loop, along, total, width, cos, slack, detour):  # type
     return out_i[:m].copy(), out_j[:m].copy()
 
 
+@nb.njit(cache=True, inline="always")
+def _k_nearest(px, py, v, order, first, nx, ny, x0, y0, size, kq, max_rings, best_d, best_i):  # type: ignore[no-untyped-def]
+    """The ``kq`` nearest of the points ``v`` to ``(px, py)``, nearest first, into ``best_d``
+    (squared distances) and ``best_i``, by :func:`nearest_vertices`'s search in rings of cells;
+    True when the answer is exact (False: beyond ``max_rings`` rings)."""
+    cx = int(math.floor((px - x0) / size))
+    cy = int(math.floor((py - y0) / size))
+    # Rings beyond this one hold no cell of the grid.
+    last = max(max(cx, nx - 1 - cx), max(cy, ny - 1 - cy))
+    found = 0
+    ring = 0
+    while True:
+        if ring > last:
+            return found == kq  # every cell searched
+        if ring > max_rings:
+            return False
+        for gy in range(cy - ring, cy + ring + 1):
+            if gy < 0 or gy >= ny:
+                continue
+            edge = gy == cy - ring or gy == cy + ring
+            step = 1 if edge else 2 * ring
+            gx = cx - ring
+            while gx <= cx + ring:
+                if 0 <= gx < nx:
+                    c = gy * nx + gx
+                    for kk in range(first[c], first[c + 1]):
+                        j = order[kk]
+                        dx, dy = v[j, 0] - px, v[j, 1] - py
+                        d2 = dx * dx + dy * dy
+                        if found == kq and d2 >= best_d[kq - 1]:
+                            continue
+                        # Insert in order (ties: the earlier found first).
+                        s = found if found < kq else kq - 1
+                        while s > 0 and best_d[s - 1] > d2:
+                            best_d[s] = best_d[s - 1]
+                            best_i[s] = best_i[s - 1]
+                            s -= 1
+                        best_d[s] = d2
+                        best_i[s] = j
+                        if found < kq:
+                            found += 1
+                gx += step
+        # Every cell of the next ring is at least ``ring * size`` from the point (less a
+        # margin for the rounding of the cells' bounds).
+        reach = ring * size * (1.0 - 1e-9)
+        if found == kq and best_d[kq - 1] <= reach * reach:
+            return True
+        ring += 1
+
+
 @nb.njit(cache=True)
 def nearest_vertices(p, v, k, size, rel, max_rings):  # type: ignore[no-untyped-def]
     """The ``k`` nearest of the points ``v (n, 2)`` to each point of ``p (m, 2)``, nearest first.
@@ -95,54 +148,8 @@ def nearest_vertices(p, v, k, size, rel, max_rings):  # type: ignore[no-untyped-
     best_d = np.empty(kq)
     best_i = np.empty(kq, dtype=np.int64)
     for q in range(m):
-        px, py = p[q, 0], p[q, 1]
-        cx = int(math.floor((px - x0) / size))
-        cy = int(math.floor((py - y0) / size))
-        # Rings beyond this one hold no cell of the grid.
-        last = max(max(cx, nx - 1 - cx), max(cy, ny - 1 - cy))
-        found = 0
-        ring = 0
-        done = False
-        while True:
-            if ring > last:
-                done = True  # every cell searched
-                break
-            if ring > max_rings:
-                break
-            for gy in range(cy - ring, cy + ring + 1):
-                if gy < 0 or gy >= ny:
-                    continue
-                edge = gy == cy - ring or gy == cy + ring
-                step = 1 if edge else 2 * ring
-                gx = cx - ring
-                while gx <= cx + ring:
-                    if 0 <= gx < nx:
-                        c = gy * nx + gx
-                        for kk in range(first[c], first[c + 1]):
-                            j = order[kk]
-                            dx, dy = v[j, 0] - px, v[j, 1] - py
-                            d2 = dx * dx + dy * dy
-                            if found == kq and d2 >= best_d[kq - 1]:
-                                continue
-                            # Insert in order (ties: the earlier found first).
-                            s = found if found < kq else kq - 1
-                            while s > 0 and best_d[s - 1] > d2:
-                                best_d[s] = best_d[s - 1]
-                                best_i[s] = best_i[s - 1]
-                                s -= 1
-                            best_d[s] = d2
-                            best_i[s] = j
-                            if found < kq:
-                                found += 1
-                    gx += step
-            # Every cell of the next ring is at least ``ring * size`` from the point (less a
-            # margin for the rounding of the cells' bounds).
-            reach = ring * size * (1.0 - 1e-9)
-            if found == kq and best_d[kq - 1] <= reach * reach:
-                done = True
-                break
-            ring += 1
-        if not (done and found == kq):
+        if not _k_nearest(p[q, 0], p[q, 1], v, order, first, nx, ny, x0, y0, size, kq, max_rings,
+                          best_d, best_i):
             continue
         status[q] = 0
         for s in range(kq - 1):
@@ -153,8 +160,106 @@ def nearest_vertices(p, v, k, size, rel, max_rings):  # type: ignore[no-untyped-
     return near, status
 
 
+@nb.njit(cache=True)
+def nearest_feet(p, seg_a, seg_b, prev, k, size, rel, max_rings):  # type: ignore[no-untyped-def]
+    """The nearest point of the boundary polylines to each point of ``p (m, 2)`` and its
+    distance, as :func:`~injmesh.kernels.outline.nearest_of_segments` finds it among the two
+    segments at each of the ``k`` nearest vertices (``seg_a[j]`` to ``seg_b[j]`` and
+    ``prev[j]``'s), those of :func:`nearest_vertices` in its order.
+
+    Where :func:`nearest_vertices` leaves a point to a k-d tree because two of its k + 1
+    nearest squared distances are within ``rel`` of each other (status 1), the answer is given
+    here all the same when it cannot depend on how the tree orders them: the near ties are all
+    among the k nearest (the (k+1)-th is clearly farther, so the k vertices are the same
+    whatever the order, hence the candidate segments too), and every candidate at the least
+    distance has the same foot, bit for bit (so whichever comes first is the same answer).
+
+    Returns ``dist (m,)``, ``foot (m, 2)`` and ``status (m,)`` int8: 0 where they are the
+    answer; else :func:`nearest_vertices`'s status (1: ties that may matter, 2: beyond its
+    rings), the points the caller asks a k-d tree for.
+    """
+    m = p.shape[0]
+    n = seg_a.shape[0]
+    kq = min(k + 1, n)
+    dist = np.zeros(m)
+    foot = np.zeros((m, 2))
+    status = np.full(m, 2, dtype=np.int8)
+    if m == 0 or n == 0 or k > n or k < 1 or not size > 0.0:
+        return dist, foot, status
+    cell, order, first, nx, ny = _cells(seg_a, size)
+    x0, y0 = seg_a[:, 0].min(), seg_a[:, 1].min()
+    best_d = np.empty(kq)
+    best_i = np.empty(kq, dtype=np.int64)
+    cand = np.empty(2 * k, dtype=np.int64)
+    cd = np.empty(2 * k)
+    cx = np.empty(2 * k)
+    cy = np.empty(2 * k)
+    for q in range(m):
+        px, py = p[q, 0], p[q, 1]
+        if not _k_nearest(px, py, seg_a, order, first, nx, ny, x0, y0, size, kq, max_rings, best_d,
+                          best_i):
+            continue
+        inner = False  # a near tie among the k nearest
+        outer = False  # one between the k-th and the (k+1)-th
+        for s in range(kq - 1):
+            if best_d[s + 1] - best_d[s] <= rel * best_d[s + 1]:
+                if s < k - 1:
+                    inner = True
+                else:
+                    outer = True
+        if outer:
+            status[q] = 1
+            continue
+        for s in range(k):
+            cand[s] = best_i[s]
+            cand[k + s] = prev[best_i[s]]
+        best = np.inf
+        fx, fy = 0.0, 0.0
+        for j in range(2 * k):
+            c = cand[j]
+            d, qx, qy = segment_foot(px, py, seg_a[c, 0], seg_a[c, 1], seg_b[c, 0], seg_b[c, 1])
+            cd[j], cx[j], cy[j] = d, qx, qy
+            if d < best:
+                best, fx, fy = d, qx, qy
+        if inner:
+            # Every order of the tied vertices gives the first of the candidates at distance
+            # ``best``: the same foot only if all of them have it (bits, sign of zero included).
+            certain = True
+            for j in range(2 * k):
+                if cd[j] == best and not (_same_bits(cx[j], fx) and _same_bits(cy[j], fy)):
+                    certain = False
+            if not certain:
+                status[q] = 1
+                continue
+        status[q] = 0
+        dist[q] = best
+        foot[q, 0] = fx
+        foot[q, 1] = fy
+    return dist, foot, status
+
+
+@nb.njit(cache=True, inline="always")
+def _same_bits(a, b):  # type: ignore[no-untyped-def]
+    return a == b and math.copysign(1.0, a) == math.copysign(1.0, b)
+
+
 #: The feature grid's neighbour pairs (a, b = a + (dj, di)): east, north, north-east, north-west.
 _PAIRS = ((0, 1), (1, 0), (1, 1), (1, -1))
+
+
+@nb.njit(cache=True, inline="always")
+def _longer(dx, dy, length):  # type: ignore[no-untyped-def]
+    """``math.hypot(dx, dy) > length``, from the squares where they decide it with a wide
+    margin (relative 1e-9, far above their rounding; no overflow or underflow), else by the
+    hypot itself: the same answer, mostly without a hypot."""
+    g2 = dx * dx + dy * dy
+    l2 = length * length
+    if 1e-250 < l2 < 1e250 and g2 < 1e250:
+        if g2 > l2 * (1.0 + 1e-9):
+            return True
+        if g2 < l2 * (1.0 - 1e-9):
+            return False
+    return math.hypot(dx, dy) > length
 
 
 @nb.njit(cache=True)
@@ -178,10 +283,11 @@ def medial_candidates(x, y, feet, inside, exact, spacing, jump):  # type: ignore
         for j in range(0, ny - dj):
             for i in range(max(0, -di), nx - max(0, di)):
                 jb, ib = j + dj, i + di
-                if not (inside[j, i] and inside[jb, ib]):
-                    continue
-                gap = math.hypot(feet[j, i, 0] - feet[jb, ib, 0], feet[j, i, 1] - feet[jb, ib, 1])
-                if gap > max(floor, 0.5 * min(r[j, i], r[jb, ib])):
+                if not (inside[j, i] and inside[jb, ib]) or (cand[j, i] and cand[jb, ib]):
+                    continue  # (a pair already marked both ways changes nothing)
+                dx = feet[j, i, 0] - feet[jb, ib, 0]
+                dy = feet[j, i, 1] - feet[jb, ib, 1]
+                if _longer(dx, dy, max(floor, 0.5 * min(r[j, i], r[jb, ib]))):
                     cand[j, i] = True
                     cand[jb, ib] = True
     todo = np.zeros((ny, nx), dtype=np.bool_)
@@ -258,3 +364,35 @@ def medial_marks(x, y, feet, inside, spacing, limit):  # type: ignore[no-untyped
                 if hit[j, i]:
                     axis[j + dj, i + di, 0], axis[j + dj, i + di, 1] = cross[j, i, 0], cross[j, i, 1]
     return marked, r, axis
+
+
+@nb.njit(cache=True)
+def gather_feet(feet, jj, ii):  # type: ignore[no-untyped-def]
+    """``feet[jj, ii]`` for ``feet (ny, nx, 2)`` and the index grids ``jj, ii (ny, nx)`` of a
+    distance transform: each node takes the foot of its nearest seed (a copy, C order)."""
+    ny, nx = jj.shape
+    out = np.empty((ny, nx, 2))
+    for j in range(ny):
+        for i in range(nx):
+            out[j, i, 0] = feet[jj[j, i], ii[j, i], 0]
+            out[j, i, 1] = feet[jj[j, i], ii[j, i], 1]
+    return out
+
+
+@nb.njit(cache=True)
+def feature_values(x, y, r, axis, mj, mi, inside, near, min_size, max_size):  # type: ignore[no-untyped-def]
+    """The feature size ``2 (r + d_MA)`` at the ``near`` nodes (r negative outside), ``d_MA``
+    the distance to the crossing ``axis[mj, mi]`` of the nearest medial-axis node, clipped to
+    ``[min_size, max_size]``; ``inf`` at the other nodes.  The numbers of the NumPy form
+    (``np.hypot``, then ``np.clip``), node by node."""
+    ny, nx = near.shape
+    fs = np.full((ny, nx), np.inf)
+    for j in range(ny):
+        for i in range(nx):
+            if not near[j, i]:
+                continue
+            a, b = mj[j, i], mi[j, i]
+            d_ma = math.hypot(x[i] - axis[a, b, 0], y[j] - axis[a, b, 1])
+            v = 2.0 * ((r[j, i] if inside[j, i] else -r[j, i]) + d_ma)
+            fs[j, i] = min(max(v, min_size), max_size)
+    return fs

@@ -148,6 +148,17 @@ def facing_walls(v, prv, seg, seg_len, v_n, seg_n, radius, width, back_to_back, 
     return False, out_a[:m].copy(), out_f[:m].copy(), out_d[:m].copy()
 
 
+@nb.njit(cache=True, inline="always")
+def segment_foot(px, py, ax, ay, bx, by):  # type: ignore[no-untyped-def]
+    """The foot ``a + t (b - a)`` (t clamped to [0, 1]) of the point on segment ab and its
+    distance (a hypot): the numbers of :func:`nearest_of_segments`, one segment."""
+    abx, aby = bx - ax, by - ay
+    l2 = max(abx * abx + aby * aby, _TINY)
+    t = min(max(((px - ax) * abx + (py - ay) * aby) / l2, 0.0), 1.0)
+    qx, qy = ax + t * abx, ay + t * aby
+    return math.hypot(px - qx, py - qy), qx, qy
+
+
 @nb.njit(cache=True)
 def nearest_of_segments(p, cand, seg_a, seg_b):  # type: ignore[no-untyped-def]
     """The distance from each point of ``p (n, 2)`` to the nearest of its candidate segments
@@ -156,7 +167,6 @@ def nearest_of_segments(p, cand, seg_a, seg_b):  # type: ignore[no-untyped-def]
     numbers of the NumPy form (tests/test_feature_size.py), without its (n, c, 2) temporaries
     (the feature grid's nearest boundary points)."""
     n, c = cand.shape
-    tiny = np.finfo(np.float64).tiny
     dist = np.empty(n)
     foot = np.empty((n, 2))
     for i in range(n):
@@ -165,12 +175,7 @@ def nearest_of_segments(p, cand, seg_a, seg_b):  # type: ignore[no-untyped-def]
         fx, fy = 0.0, 0.0
         for j in range(c):
             k = cand[i, j]
-            ax, ay = seg_a[k, 0], seg_a[k, 1]
-            abx, aby = seg_b[k, 0] - ax, seg_b[k, 1] - ay
-            l2 = max(abx * abx + aby * aby, tiny)
-            t = min(max(((px - ax) * abx + (py - ay) * aby) / l2, 0.0), 1.0)
-            qx, qy = ax + t * abx, ay + t * aby
-            d = math.hypot(px - qx, py - qy)
+            d, qx, qy = segment_foot(px, py, seg_a[k, 0], seg_a[k, 1], seg_b[k, 0], seg_b[k, 1])
             if d < best:
                 best, fx, fy = d, qx, qy
         dist[i] = best
@@ -550,3 +555,26 @@ def threaded_corner_cones(p, hp, index):  # type: ignore[no-untyped-def]
 
     threads.each(n, run)
     return out
+
+
+@nb.njit(cache=True)
+def nearest_segments_brute(q, a, ab, ab2):  # type: ignore[no-untyped-def]
+    """The nearest segment ``a[i] -> a[i] + ab[i]`` of each point of ``q (m, 2)``, trying every
+    segment (for few points and segments): its index (the lowest on a tie), the foot's
+    parameter t (clamped to [0, 1]) and the distance.  The numbers of ``boundary
+    ._nearest_segments``'s NumPy form: ``t = clip(((q - a) . ab) / ab2, 0, 1)``, the foot
+    ``a + t ab``, a hypot."""
+    m, n = q.shape[0], a.shape[0]
+    seg = np.zeros(m, dtype=np.int64)
+    out_t = np.zeros(m)
+    out_d = np.full(m, np.inf)
+    for i in range(m):
+        qx, qy = q[i, 0], q[i, 1]
+        for j in range(n):
+            t = ((qx - a[j, 0]) * ab[j, 0] + (qy - a[j, 1]) * ab[j, 1]) / ab2[j]
+            # As np.clip clamps: -0.0 becomes 0.0, a NaN stays.
+            t = 0.0 if t <= 0.0 else (1.0 if t >= 1.0 else t)
+            d = math.hypot(qx - (a[j, 0] + t * ab[j, 0]), qy - (a[j, 1] + t * ab[j, 1]))
+            if d < out_d[i]:
+                seg[i], out_t[i], out_d[i] = j, t, d
+    return seg, out_t, out_d

@@ -4,7 +4,10 @@ A background grid of a domain with an exact boundary needs the signed distance o
 boundary: farther away the sign is all that is read.  :func:`scan` gives the sign of every node
 by the even-odd rule along each grid row (one pass over the segments, then a sort of each row's
 crossings) and marks the nodes within a given distance of a segment's bounding box, which the
-caller evaluates exactly.  Linear in nodes plus segments; deterministic.
+caller evaluates exactly.  Linear in nodes plus segments; deterministic.  :func:`near_nodes`
+marks the nodes within a distance of the segments themselves (a band as wide as asked), and
+:func:`cell_signs` is the per-point cell lookup of the node estimate's inside test
+(:func:`injmesh.sizing.background.inside_test`).
 """
 
 from __future__ import annotations
@@ -76,3 +79,108 @@ def scan(x: np.ndarray, y: np.ndarray, a: np.ndarray, b: np.ndarray,
                 if row[c] <= x[i] <= row[c + 1]:
                     inside[j, i] = True
     return inside, near
+
+
+@numba.njit(cache=True)
+def near_nodes(x: np.ndarray, y: np.ndarray, a: np.ndarray, b: np.ndarray, reach: float) -> np.ndarray:
+    """Nodes within ``reach`` of a segment ``a[s] -> b[s]`` (distance to the segment itself,
+    not to its box: a band about ``reach`` wide each side of the polylines).
+
+    ``x`` (nx,) and ``y`` (ny,) are uniform, increasing axes.  A node whose rounded distance
+    is a hair above ``reach`` may be left out: callers ask for a margin (see
+    :func:`injmesh.sizing.background.inside_test`).
+    """
+    nx, ny, m = x.shape[0], y.shape[0], a.shape[0]
+    sx = (x[nx - 1] - x[0]) / max(nx - 1, 1)
+    sy = (y[ny - 1] - y[0]) / max(ny - 1, 1)
+    near = np.zeros((ny, nx), dtype=np.bool_)
+    r2 = reach * reach
+    for s in range(m):
+        ax, ay, bx, by = a[s, 0], a[s, 1], b[s, 0], b[s, 1]
+        i0 = max(int(math.floor((min(ax, bx) - reach - x[0]) / sx)), 0)
+        i1 = min(int(math.ceil((max(ax, bx) + reach - x[0]) / sx)), nx - 1)
+        j0 = max(int(math.floor((min(ay, by) - reach - y[0]) / sy)), 0)
+        j1 = min(int(math.ceil((max(ay, by) + reach - y[0]) / sy)), ny - 1)
+        dx, dy = bx - ax, by - ay
+        l2 = dx * dx + dy * dy
+        for j in range(j0, j1 + 1):
+            for i in range(i0, i1 + 1):
+                if near[j, i]:
+                    continue
+                px, py = x[i] - ax, y[j] - ay
+                t = 0.0 if l2 <= 0.0 else min(max((px * dx + py * dy) / l2, 0.0), 1.0)
+                ex, ey = px - t * dx, py - t * dy
+                if ex * ex + ey * ey <= r2:
+                    near[j, i] = True
+    return near
+
+
+@numba.njit(cache=True)
+def cell_signs(p: np.ndarray, x0: float, y0: float, spacing: float, known: np.ndarray,
+               neg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The sign of each point ``p (m, 2)`` where its grid cell is ``known`` (cell ``(j, i)``
+    spans ``[x0 + i spacing, x0 + (i + 1) spacing)`` and likewise in y, by ``floor``), and
+    the points whose cell is not known or outside the grid.
+
+    Returns ``inside (m,)`` (``neg`` of the cell; False where not known) and the rows of the
+    points left to decide.
+    """
+    m = p.shape[0]
+    ny, nx = known.shape
+    inside = np.zeros(m, dtype=np.bool_)
+    rest = np.empty(m, dtype=np.int64)
+    k = 0
+    for q in range(m):
+        # Compared as floats, as NumPy would: a NaN or huge coordinate is simply not in a cell.
+        i = np.floor((p[q, 0] - x0) / spacing)
+        j = np.floor((p[q, 1] - y0) / spacing)
+        if i >= 0 and i < nx and j >= 0 and j < ny and known[int(j), int(i)]:
+            inside[q] = neg[int(j), int(i)]
+        else:
+            rest[k] = q
+            k += 1
+    return inside, rest[:k].copy()
+
+
+@numba.njit(cache=True)
+def quarter_samples(centres: np.ndarray, side: float, quarter: np.ndarray, r2: np.ndarray) -> np.ndarray:
+    """The node estimate's samples (:func:`injmesh.boundary.estimate_nodes`): for each quarter
+    q of each cell c (``quarter (4, 2)`` offsets in cells, quarter-major), ``centres[c] + side
+    (quarter[q] + 0.5 j_c)`` with the jitter ``j_c = (c r2) mod 1 - 0.5`` of the R2 sequence;
+    the numbers of its NumPy form, ``(4 k, 2)``."""
+    k = centres.shape[0]
+    out = np.empty((quarter.shape[0] * k, 2))
+    for c in range(k):
+        jx = (c * r2[0]) % 1.0 - 0.5
+        jy = (c * r2[1]) % 1.0 - 0.5
+        for q in range(quarter.shape[0]):
+            out[q * k + c, 0] = centres[c, 0] + side * (quarter[q, 0] + 0.5 * jx)
+            out[q * k + c, 1] = centres[c, 1] + side * (quarter[q, 1] + 0.5 * jy)
+    return out
+
+
+@numba.njit(cache=True)
+def densify(loop: np.ndarray, step: float) -> np.ndarray:
+    """A closed polyline ``loop (n, 2)`` with extra vertices so that no segment is longer than
+    ``step``: each segment cut into ``max(1, ceil(length / step))`` equal pieces, vertex k of a
+    piece at ``a + (k / pieces) (b - a)`` (:func:`injmesh.sizing.background.densify`; the
+    numbers of its NumPy form)."""
+    n = loop.shape[0]
+    pieces = np.empty(n, dtype=np.int64)
+    total = 0
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        cut = np.ceil(math.hypot(loop[j, 0] - loop[i, 0], loop[j, 1] - loop[i, 1]) / step)
+        pieces[i] = int(max(1.0, cut))
+        total += pieces[i]
+    out = np.empty((total, 2))
+    m = 0
+    for i in range(n):
+        j = i + 1 if i + 1 < n else 0
+        dx, dy = loop[j, 0] - loop[i, 0], loop[j, 1] - loop[i, 1]
+        for k in range(pieces[i]):
+            frac = k / pieces[i]
+            out[m, 0] = loop[i, 0] + frac * dx
+            out[m, 1] = loop[i, 1] + frac * dy
+            m += 1
+    return out

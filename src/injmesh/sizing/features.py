@@ -137,7 +137,9 @@ def _loops(domain: Domain, grid: Background) -> list[FloatArray]:
         return list(domain.boundary_loops(0.5 * grid.spacing))
     from ..geometry.tracing import loops_from_grid
 
-    return [domain.project(loop) for loop in loops_from_grid(grid.x, grid.y, grid.d)]
+    # Tracing interpolates d between nodes: a grid of signs alone is sampled again.
+    d = make_background(domain, grid.spacing, grid.capped, check=False).d if grid.signs_only else grid.d
+    return [domain.project(loop) for loop in loops_from_grid(grid.x, grid.y, d)]
 
 
 def _boundary(domain: Domain, grid: Background, loops: list[FloatArray] | None = None) -> Segments:
@@ -176,55 +178,94 @@ def _arc_positions(seg_a: FloatArray, seg_b: FloatArray, prev: NDArray[np.intp])
     return loop, start - start[np.flatnonzero(first)][loop], total[loop]
 
 
+class _Trees:
+    """The k-d trees :func:`_nearest_on_boundary` may ask over one set of boundary vertices,
+    each built on first use and kept for the next call on the same vertices (the feature grid
+    asks twice: its seeds, then its medial-axis candidates).  A tree's answer to a point does
+    not depend on what else it was asked."""
+
+    def __init__(self, seg_a: FloatArray) -> None:
+        self.seg_a = seg_a
+        self._default: Any = None
+        self._loose: Any = None
+
+    def default(self) -> Any:
+        """The default tree (balanced, compact), the one the nearest points were first defined by."""
+        if self._default is None:
+            from scipy.spatial import cKDTree
+
+            self._default = cKDTree(self.seg_a)
+        return self._default
+
+    def loose(self) -> Any:
+        """A tree whose cells are left as the splits make them (see :func:`_nearest_on_boundary`)."""
+        if self._loose is None:
+            from scipy.spatial import cKDTree
+
+            self._loose = cKDTree(self.seg_a, balanced_tree=False, compact_nodes=False)
+        return self._loose
+
+
 def _nearest_on_boundary(
-    p: FloatArray, seg_a: FloatArray, seg_b: FloatArray, prev: NDArray[np.intp]
+    p: FloatArray, seg_a: FloatArray, seg_b: FloatArray, prev: NDArray[np.intp],
+    trees: _Trees | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Distance from each point to the boundary polylines and the nearest boundary point.
 
     Segment ``k`` runs from vertex ``k`` (``seg_a[k]``) to the next one; the candidates are the
-    two segments at each of the ``NEAREST_VERTICES`` nearest vertices.
+    two segments at each of the ``NEAREST_VERTICES`` nearest vertices.  ``trees``: the k-d
+    trees of ``seg_a`` from an earlier call, when the caller keeps them.
     """
-    from ..kernels.feature import nearest_vertices
+    from ..kernels.feature import nearest_feet
     from ..kernels.outline import nearest_of_segments
 
     k = min(NEAREST_VERTICES, len(seg_a))
     # The k nearest vertices, exactly, from a compiled search over a grid of cells about two
     # vertices' share of the box wide (the 7,000 medial-axis candidates of the paper's
-    # four-hole square: 4 ms, where a k-d tree took 9).  Where two of the k + 1 nearest
-    # distances are (nearly) equal, equidistant vertices (grid-aligned walls) come in an order
-    # that depends on the search: those points ask the default k-d tree, as they always have
-    # (where the distances differ, every exact search gives the same vertices in the same
-    # order, so these get the same nearest points either way).
+    # four-hole square: 4 ms, where a k-d tree took 9), and the nearest point on their
+    # segments in the same call.  Where two of the k + 1 nearest distances are (nearly)
+    # equal, equidistant vertices (grid-aligned walls) come in an order that depends on the
+    # search: those points ask the default k-d tree, as they always have (where the distances
+    # differ, every exact search gives the same vertices in the same order, so these get the
+    # same nearest points either way), unless the order cannot change the answer
+    # (:func:`~injmesh.kernels.feature.nearest_feet`: most such points on the paper's
+    # four-hole square, 1,300 of 1,600).
     extent = np.ptp(seg_a, axis=0) if len(seg_a) else np.zeros(2)
     size = max(2.0 * math.sqrt(float(extent[0] * extent[1]) / max(len(seg_a), 1)),
                float(extent.max()) / max(len(seg_a), 1))
-    near = np.zeros((len(p), k), dtype=np.int64)
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    dist = np.zeros(len(p))
+    foot = np.zeros((len(p), 2))
     status = np.full(len(p), 2, dtype=np.int8)
     if k and size > 0:
-        near, status = nearest_vertices(np.ascontiguousarray(p, dtype=np.float64),
-                                        np.ascontiguousarray(seg_a, dtype=np.float64), k, size,
-                                        NEAREST_TIE, NEAREST_RINGS)
-    if np.any(status != 0):
-        from scipy.spatial import cKDTree
-
-        far = status == 2
+        dist, foot, status = nearest_feet(p, np.ascontiguousarray(seg_a, dtype=np.float64),
+                                          np.ascontiguousarray(seg_b, dtype=np.float64),
+                                          np.ascontiguousarray(prev, dtype=np.int64), k, size,
+                                          NEAREST_TIE, NEAREST_RINGS)
+    rest = np.flatnonzero(status != 0)
+    if len(rest):
+        trees = _Trees(seg_a) if trees is None else trees
+        q, st = p[rest], status[rest]
+        near = np.zeros((len(rest), k), dtype=np.int64)
+        far = st == 2
         if far.any():
             # Points farther than NEAREST_RINGS cells from their vertices (deep inside a
             # detailed outline).  A tree whose cells are left as the splits make them (not
             # shrunk to their points) answers such queries 5-8 times faster than the default
             # one (1.3 -> 0.2 s for the 80,000 medial-axis candidates of a 20,000-vertex
             # outline); the points it finds ties for join those of the search.
-            q = p[far]
             kq = min(k + 1, len(seg_a))
-            dist_k, near_q = cKDTree(seg_a, balanced_tree=False, compact_nodes=False).query(q, k=kq)
-            dist_k, near_q = dist_k.reshape(len(q), kq), near_q.reshape(len(q), kq)[:, :k]
+            dist_k, near_q = trees.loose().query(q[far], k=kq)
+            dist_k, near_q = dist_k.reshape(-1, kq), near_q.reshape(-1, kq)[:, :k]
             near[far] = near_q
-            status[np.flatnonzero(far)[np.any(dist_k[:, 1:] == dist_k[:, :-1], axis=1)]] = 1
-        tied = status == 1
+            st[np.flatnonzero(far)[np.any(dist_k[:, 1:] == dist_k[:, :-1], axis=1)]] = 1
+        tied = st == 1
         if tied.any():
-            near[tied] = cKDTree(seg_a).query(p[tied], k=k)[1].reshape(-1, k)
-    return nearest_of_segments(p, np.ascontiguousarray(np.concatenate([near, prev[near]], axis=1)),
-                               seg_a, seg_b)  # type: ignore[no-any-return]
+            near[tied] = trees.default().query(q[tied], k=k)[1].reshape(-1, k)
+        near = np.ascontiguousarray(near, dtype=np.int64)
+        cand = np.ascontiguousarray(np.concatenate([near, prev[near]], axis=1), dtype=np.int64)
+        dist[rest], foot[rest] = nearest_of_segments(q, cand, seg_a, seg_b)
+    return dist, foot
 
 
 def thinnest_gap(domain: Domain, grid: Background, corner_angle: float,
@@ -533,7 +574,7 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
     ``boundary``: :func:`_boundary` of this grid, when the caller has it."""
     from scipy import ndimage
 
-    from ..kernels.feature import medial_candidates, medial_marks
+    from ..kernels.feature import feature_values, gather_feet, medial_candidates, medial_marks
 
     inside = grid.inside
     band = grid.band
@@ -552,9 +593,10 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
     seg_a, seg_b, prev = _boundary(domain, grid) if boundary is None else boundary
     exact = seeds.copy()
     feet = np.zeros(shape + (2,))
-    feet[seeds] = _nearest_on_boundary(grid.nodes(seeds), seg_a, seg_b, prev)[1]
+    trees = _Trees(seg_a)
+    feet[seeds] = _nearest_on_boundary(grid.nodes(seeds), seg_a, seg_b, prev, trees)[1]
     _, (jj, ii) = ndimage.distance_transform_edt(~seeds, return_indices=True)
-    feet = np.ascontiguousarray(feet[jj, ii])
+    feet = gather_feet(feet, jj, ii)
     x, y = grid.x, grid.y
     # Candidates: where the approximate nearest point jumps between neighbours (near the medial
     # axis the nearest seed may lie on any of the walls at about the same distance, so the
@@ -564,7 +606,7 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
     # across the medial axis they jump from one wall to the other, about 2 r apart.
     todo = medial_candidates(x, y, feet, inside, exact, float(grid.spacing), float(CANDIDATE_JUMP))
     if todo.any():
-        feet[todo] = _nearest_on_boundary(grid.nodes(todo), seg_a, seg_b, prev)[1]
+        feet[todo] = _nearest_on_boundary(grid.nodes(todo), seg_a, seg_b, prev, trees)[1]
     # Neighbours (8-neighbourhood) whose directions from their nearest points are roughly
     # opposite straddle the medial axis; both are marked, with the point where the axis crosses
     # their pair: where the distances to the two walls (planes through the nearest points,
@@ -575,15 +617,15 @@ def feature_grid(domain: Domain, grid: Background, min_size: float, corner_angle
     # grid cost 7 ms on the paper's four-hole square.)
     medial, r, axis_point = medial_marks(x, y, feet, inside, float(grid.spacing),
                                          -math.cos(math.radians(corner_angle)))
-    fs = np.full(shape, np.inf)
     if medial.any():
-        # d_MA: distance to the crossing recorded at the nearest marked node.
+        # d_MA: distance to the crossing recorded at the nearest marked node.  Outside (the
+        # band) r counts negatively: the formula continues linearly through the wall instead
+        # of folding back up, so interpolation at the wall gives the width.
         _, (mj, mi) = ndimage.distance_transform_edt(~medial, return_indices=True)
-        at = axis_point[mj, mi]
-        d_ma = np.hypot(x[None, :] - at[..., 0], y[:, None] - at[..., 1])
-        # Outside (the band) r counts negatively: the formula continues linearly through the
-        # wall instead of folding back up, so interpolation at the wall gives the width.
-        fs[near] = 2.0 * (np.where(inside[near], r[near], -r[near]) + d_ma[near])
+        fs: FloatArray = feature_values(x, y, r, axis_point, mj, mi, inside, near, float(min_size),
+                                        float(2.0 * domain.diameter))
+        return fs
+    fs = np.full(shape, np.inf)
     fs[near] = np.clip(fs[near], min_size, 2.0 * domain.diameter)
     return fs
 
@@ -805,7 +847,9 @@ def effective_size(
         # The margin is that of the grid the feature size would be computed on.
         fine = min(lo / CELLS_PER_H, dom.diameter / FEATURE_CELLS)
         if _thick(dom, bound, n_layers, angle, fine, _probe_h(h, dom)):
-            grid, h0 = sampled_grid(h, dom, None, int(max_cells), rate_, h_min=lo)
+            # Kept only if thick (then only its signs, spacing and h are read: no feature
+            # grid, no traced loops), so d's magnitudes need not be sampled.
+            grid, h0 = sampled_grid(h, dom, None, int(max_cells), rate_, h_min=lo, signs_only=True)
             # A grid refined below the probe's h_min / 4 (smaller sizes, a thin domain) is
             # a case for the full computation.
             thick = float(h0[grid.inside].max()) <= bound and grid.spacing >= lo / CELLS_PER_H
