@@ -236,3 +236,23 @@ def test_densify_is_the_numpy_form(seed: int) -> None:
         step = scale * float(10 ** rng.uniform(-2, 1))
         got, ref = densify(loop, step), numpy_form(loop, step)
         assert got.shape == ref.shape and np.array_equal(got.view(np.int64), ref.view(np.int64))
+
+
+def test_ring_cell_walks_the_rings_row_by_row():
+    from injmesh.kernels.raster import ring_cell
+
+    def rows(cx, cy, ring, nx, ny):  # the searches' former walk, written out
+        out = []
+        for gy in range(cy - ring, cy + ring + 1):
+            for gx in range(cx - ring, cx + ring + 1):
+                on_ring = max(abs(gx - cx), abs(gy - cy)) == ring
+                if on_ring and 0 <= gx < nx and 0 <= gy < ny:
+                    out.append(gy * nx + gx)
+        return out
+
+    for nx, ny in [(1, 1), (5, 3), (7, 9)]:
+        for cx in range(-2, nx + 2):
+            for cy in range(-2, ny + 2):
+                for ring in range(0, 6):
+                    got = [ring_cell(cx, cy, ring, t, nx, ny) for t in range(8 * ring if ring else 1)]
+                    assert [c for c in got if c >= 0] == rows(cx, cy, ring, nx, ny)

@@ -19,6 +19,7 @@ import numba as nb
 import numpy as np
 
 from .outline import _cells, segment_foot
+from .raster import ring_cell
 
 
 @nb.njit(cache=True)
@@ -88,32 +89,26 @@ def _k_nearest(px, py, v, order, first, nx, ny, x0, y0, size, kq, max_rings, bes
             return found == kq  # every cell searched
         if ring > max_rings:
             return False
-        for gy in range(cy - ring, cy + ring + 1):
-            if gy < 0 or gy >= ny:
+        for t in range(8 * ring if ring > 0 else 1):
+            c = ring_cell(cx, cy, ring, t, nx, ny)
+            if c < 0:
                 continue
-            edge = gy == cy - ring or gy == cy + ring
-            step = 1 if edge else 2 * ring
-            gx = cx - ring
-            while gx <= cx + ring:
-                if 0 <= gx < nx:
-                    c = gy * nx + gx
-                    for kk in range(first[c], first[c + 1]):
-                        j = order[kk]
-                        dx, dy = v[j, 0] - px, v[j, 1] - py
-                        d2 = dx * dx + dy * dy
-                        if found == kq and d2 >= best_d[kq - 1]:
-                            continue
-                        # Insert in order (ties: the earlier found first).
-                        s = found if found < kq else kq - 1
-                        while s > 0 and best_d[s - 1] > d2:
-                            best_d[s] = best_d[s - 1]
-                            best_i[s] = best_i[s - 1]
-                            s -= 1
-                        best_d[s] = d2
-                        best_i[s] = j
-                        if found < kq:
-                            found += 1
-                gx += step
+            for kk in range(first[c], first[c + 1]):
+                j = order[kk]
+                dx, dy = v[j, 0] - px, v[j, 1] - py
+                d2 = dx * dx + dy * dy
+                if found == kq and d2 >= best_d[kq - 1]:
+                    continue
+                # Insert in order (ties: the earlier found first).
+                s = found if found < kq else kq - 1
+                while s > 0 and best_d[s - 1] > d2:
+                    best_d[s] = best_d[s - 1]
+                    best_i[s] = best_i[s - 1]
+                    s -= 1
+                best_d[s] = d2
+                best_i[s] = j
+                if found < kq:
+                    found += 1
         # Every cell of the next ring is at least ``ring * size`` from the point (less a
         # margin for the rounding of the cells' bounds).
         reach = ring * size * (1.0 - 1e-9)

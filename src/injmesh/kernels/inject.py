@@ -23,6 +23,8 @@ import math
 import numba
 import numpy as np
 
+from .raster import ring_cell
+
 
 @numba.njit(cache=True, inline="always")
 def _cell_of(x: float, y: float, x0: float, y0: float, inv: float, nx: int, ny: int) -> tuple[int, int]:
@@ -63,27 +65,18 @@ def nearest(qx: float, qy: float, reach: float, pts: np.ndarray, stop: int, head
             gap = (k - 1) * cell
             if gap >= reach or gap * gap >= best2:
                 break
-        for j in range(cj - k, cj + k + 1):
-            if j < 0 or j >= ny:
-                continue
-            on_edge = j == cj - k or j == cj + k
-            step = 1 if on_edge else 2 * k
-            i = ci - k
-            while i <= ci + k:
-                if 0 <= i < nx:
-                    n = head[j * nx + i]
-                    while n >= 0:
-                        if n < stop:
-                            dx = pts[n, 0] - qx
-                            dy = pts[n, 1] - qy
-                            d2 = dx * dx + dy * dy
-                            if d2 < best2:
-                                best2 = d2
-                                who = n
-                        n = link[n]
-                if k == 0:
-                    break
-                i += step
+        for t in range(8 * k if k > 0 else 1):
+            c = ring_cell(ci, cj, k, t, nx, ny)
+            n = head[c] if c >= 0 else -1
+            while n >= 0:
+                if n < stop:
+                    dx = pts[n, 0] - qx
+                    dy = pts[n, 1] - qy
+                    d2 = dx * dx + dy * dy
+                    if d2 < best2:
+                        best2 = d2
+                        who = n
+                n = link[n]
         k += 1
     if who < 0 or best2 >= reach * reach:
         return np.inf, -1

@@ -7,7 +7,9 @@ crossings) and marks the nodes within a given distance of a segment's bounding b
 caller evaluates exactly.  Linear in nodes plus segments; deterministic.  :func:`near_nodes`
 marks the nodes within a distance of the segments themselves (a band as wide as asked), and
 :func:`cell_signs` is the per-point cell lookup of the node estimate's inside test
-(:func:`injmesh.sizing.background.inside_test`).
+(:func:`injmesh.sizing.background.inside_test`).  :func:`ring_cell` gives the cells of a square
+ring round a cell, the walk of the cell-grid nearest-point searches (injection's proximity
+test, the feature size's nearest vertices).
 """
 
 from __future__ import annotations
@@ -184,3 +186,26 @@ def densify(loop: np.ndarray, step: float) -> np.ndarray:
             out[m, 1] = loop[i, 1] + frac * dy
             m += 1
     return out
+
+
+@numba.njit(cache=True, inline="always")
+def ring_cell(cx: int, cy: int, ring: int, t: int, nx: int, ny: int) -> int:
+    """Cell ``t`` of the square ring ``ring`` cells out from cell ``(cx, cy)`` on an ``nx`` by
+    ``ny`` grid, as ``gy * nx + gx``, or -1 when it is off the grid.
+
+    A ring has ``8 * ring`` cells (one for ring 0), in rows from ``cy - ring`` up, each row
+    left to right: all of the first and the last row, the two end cells of the others.  The
+    cell-grid searches visit them in this order, so their ties are settled as they were.
+    Arithmetic only: no scratch array in a search called once per point.
+    """
+    side = 2 * ring + 1
+    if t < side or ring == 0:
+        gy, gx = cy - ring, cx - ring + t
+    elif t < side + 2 * (side - 2):
+        u = t - side
+        gy, gx = cy - ring + 1 + u // 2, (cx - ring if u % 2 == 0 else cx + ring)
+    else:
+        gy, gx = cy + ring, cx - ring + (t - side - 2 * (side - 2))
+    if gx < 0 or gx >= nx or gy < 0 or gy >= ny:
+        return -1
+    return gy * nx + gx
