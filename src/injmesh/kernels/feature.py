@@ -18,6 +18,7 @@ import math
 import numba as nb
 import numpy as np
 
+from .mesh import push_pair
 from .outline import _cells, segment_foot
 from .raster import ring_cell
 
@@ -64,12 +65,7 @@ def gap_pairs(v, normal, loop, along, total, width, cos, slack, detour):  # type
                         arc = min(arc, total[i] - arc)
                     if not (arc > detour * dist * (1.0 - slack)):
                         continue
-                    if m == out_i.shape[0]:
-                        out_i = np.concatenate((out_i, np.empty(m, dtype=np.int64)))
-                        out_j = np.concatenate((out_j, np.empty(m, dtype=np.int64)))
-                    out_i[m] = i
-                    out_j[m] = j
-                    m += 1
+                    out_i, out_j, m = push_pair(out_i, out_j, m, i, j)
     return out_i[:m].copy(), out_j[:m].copy()
 
 

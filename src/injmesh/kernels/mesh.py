@@ -167,7 +167,7 @@ def unusual_edges(tri, n):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, inline="always")
-def _push_pair(out_a, out_b, count, i, j):  # type: ignore[no-untyped-def]
+def push_pair(out_a, out_b, count, i, j):  # type: ignore[no-untyped-def]
     """Append the pair (i, j) at ``count``, doubling the arrays when full; the arrays and the
     new count."""
     if count == out_a.shape[0]:
@@ -212,7 +212,7 @@ def close_pairs(pts, cell, order, eps):  # type: ignore[no-untyped-def]
                 if pts[j, 1] - yi > eps:
                     break
                 if abs(pts[j, 0] - xi) <= eps and abs(pts[j, 1] - yi) <= eps:
-                    out_a, out_b, count = _push_pair(out_a, out_b, count, i, j)
+                    out_a, out_b, count = push_pair(out_a, out_b, count, i, j)
                 s += 1
             if step == 1 or end[r] >= n or cell[order[end[r]]] != c + 1:
                 break
@@ -302,7 +302,7 @@ def close_pairs_binned(pts, eps, max_work):  # type: ignore[no-untyped-def]
                     if j <= i:
                         continue
                     if abs(pts[j, 0] - xi) <= eps and abs(pts[j, 1] - yi) <= eps:
-                        out_a, out_b, count = _push_pair(out_a, out_b, count, i, j)
+                        out_a, out_b, count = push_pair(out_a, out_b, count, i, j)
     pairs = np.empty((count, 2), dtype=np.int64)
     pairs[:, 0] = out_a[:count]
     pairs[:, 1] = out_b[:count]

@@ -34,6 +34,7 @@ import numba as nb
 import numpy as np
 
 from . import threads
+from .mesh import push_pair
 
 _TINY = np.finfo(np.float64).tiny
 
@@ -219,12 +220,7 @@ def points_in_balls(q, radius, v, size):  # type: ignore[no-untyped-def]
                     j = order[t]
                     dx, dy = v[j, 0] - x, v[j, 1] - y
                     if dx * dx + dy * dy <= r2:
-                        if k == len(rows):
-                            rows = np.concatenate((rows, np.empty(k, dtype=np.int64)))
-                            cols = np.concatenate((cols, np.empty(k, dtype=np.int64)))
-                        rows[k] = i
-                        cols[k] = j
-                        k += 1
+                        rows, cols, k = push_pair(rows, cols, k, i, j)
     return rows[:k].copy(), cols[:k].copy()
 
 
