@@ -265,13 +265,12 @@ def _dedupe(p: FloatArray, eps: float) -> FloatArray:
 
 
 def densify(loop: FloatArray, spacing: float) -> FloatArray:
-    """Insert vertices on the segments of a closed polyline so none is longer than ``spacing``."""
-    nxt = np.roll(loop, -1, axis=0)
-    pieces = np.maximum(1, np.ceil(np.hypot(*(nxt - loop).T) / spacing)).astype(int)
-    seg = np.repeat(np.arange(len(loop)), pieces)
-    t = np.arange(len(seg)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
-    t = t / pieces[seg]
-    return loop[seg] + t[:, None] * (nxt[seg] - loop[seg])
+    """Insert vertices on the segments of a closed polyline so none is longer than ``spacing``
+    (:func:`injmesh.kernels.raster.densify`, the compiled form the background grids use)."""
+    from ..kernels.raster import densify as dense
+
+    out: FloatArray = dense(np.ascontiguousarray(loop, dtype=np.float64).reshape(-1, 2), float(spacing))
+    return out
 
 
 def _crossings(a: Domain, b: Domain) -> FloatArray:
