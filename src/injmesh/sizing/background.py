@@ -97,6 +97,15 @@ def cells(box: tuple[float, float, float, float], spacing: float) -> tuple[int, 
     )
 
 
+def axes(box: tuple[float, float, float, float], spacing: float) -> tuple[FloatArray, FloatArray]:
+    """The node coordinates along x and y of the grid of ``spacing`` over a box (:func:`cells`
+    nodes each, ``PAD`` of them outside the box on every side)."""
+    nx, ny = cells(box, spacing)
+    x = box[0] + spacing * (np.arange(nx, dtype=np.float64) - PAD)
+    y = box[1] + spacing * (np.arange(ny, dtype=np.float64) - PAD)
+    return x, y
+
+
 def check_grid_options(spacing: float | None, max_cells: int) -> None:
     """Validate the public ``spacing=`` and ``max_cells=`` arguments."""
     if spacing is not None and not (isinstance(spacing, (int, float, np.number)) and math.isfinite(
@@ -167,10 +176,7 @@ def make_background(domain: Domain, spacing: float, capped: bool = False, check:
     sdf calls where the boundary is exact); the magnitudes are ``NEAR`` spacings, not to be
     read (:attr:`Background.signs_only`).
     """
-    x0, y0, _, _ = domain.bbox
-    nx, ny = cells(domain.bbox, spacing)
-    x = x0 + spacing * (np.arange(nx, dtype=np.float64) - PAD)
-    y = y0 + spacing * (np.arange(ny, dtype=np.float64) - PAD)
+    x, y = axes(domain.bbox, spacing)
     # (A circle's or a rectangle's closed formula, or a plain sdf, gives d itself as cheaply.)
     signs_only = signs_only and not isinstance(domain, (Circle, Rectangle)) \
         and exact_boundary(domain) is not None
@@ -301,10 +307,7 @@ def inside_test(domain: Domain, spacing: float) -> Callable[[FloatArray], BoolAr
     brep = exact_boundary(domain)
     if brep is None:
         return None
-    x0, y0, _, _ = domain.bbox
-    nx, ny = cells(domain.bbox, spacing)
-    gx = x0 + spacing * (np.arange(nx, dtype=np.float64) - PAD)
-    gy = y0 + spacing * (np.arange(ny, dtype=np.float64) - PAD)
+    gx, gy = axes(domain.bbox, spacing)
     from ..kernels.raster import cell_signs, near_nodes, scan
 
     a, b = _polylines(brep, float(spacing))
@@ -361,9 +364,7 @@ def probe_range(h: SizeFunction, domain: Domain) -> tuple[float, float]:
     step = max(x1 - x0, y1 - y0) / PROBE_CELLS
     inner, rim = np.empty((0, 2)), np.empty((0, 2))
     # Only the nodes' signs are read here (:func:`signs_on_grid`: the grid's d, fewer sdf calls).
-    nx, ny = cells(domain.bbox, step)
-    gx = x0 + step * (np.arange(nx, dtype=np.float64) - PAD)
-    gy = y0 + step * (np.arange(ny, dtype=np.float64) - PAD)
+    gx, gy = axes(domain.bbox, step)
     j, i = np.nonzero(signs_on_grid(domain, gx, gy, float(step)))
     inner = np.stack([gx[i], gy[j]], axis=1)  # empty when the domain is thinner than the grid
     try:
