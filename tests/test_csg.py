@@ -241,3 +241,18 @@ def test_hole_far_below_h_is_reported_not_lost_silently() -> None:
     it out with its warning."""
     with pytest.warns(UserWarning, match=r"near \(0\.5, 0\.5\).*shorter than"):
         injmesh.generate(Rectangle((0, 0), (1, 1)) - Circle((0.5, 0.5), 0.001), 0.1)
+
+
+@pytest.mark.parametrize("make", [
+    lambda: Circle((0, 0), 1) & Circle((5, 5), 1),  # boxes apart: the box is inverted
+    lambda: Rectangle((0, 0), (1, 1)) & Rectangle((1, 0), (2, 1)),  # boxes share an edge only
+    lambda: (Polygon([(0, 0.8), (0.3, 0.9), (0.1, 1.0)]) - Circle((0.2, 0.1), 0.4))
+    & Circle((0.7, 0.3), 0.2),  # found by fuzzing: a reshape error from inside the tracing grid
+])
+def test_empty_intersection_is_a_clear_error(make) -> None:
+    """An intersection whose operands' boxes do not overlap has a box of no area: refused up
+    front, by name, not with an error from a grid of negative size."""
+    with pytest.raises(injmesh.GeometryError, match="the domain is empty"):
+        injmesh.generate(make(), 0.05)
+    with pytest.raises(injmesh.GeometryError, match="the domain is empty"):
+        injmesh.sizing.feature_size(make())

@@ -137,6 +137,16 @@ def _distance_to(p: FloatArray, q: FloatArray) -> FloatArray:
     return np.asarray(np.hypot(*(p[:, None, :] - q[None, :, :]).transpose(2, 0, 1)).min(axis=1))
 
 
+def _check_extent(domain: Domain) -> None:
+    """Raise when a domain's box has no area: an intersection of shapes whose boxes do not
+    overlap is empty, and every grid over such a box has no cell (or a negative count)."""
+    x0, y0, x1, y1 = (float(v) for v in domain.bbox)
+    if not (x1 > x0 and y1 > y0):
+        raise GeometryError(
+            f"the domain is empty: its bounding box ({x0:.6g}, {y0:.6g}, {x1:.6g}, {y1:.6g}) has "
+            "no area (an intersection of shapes that do not overlap?)")
+
+
 def as_domain(
     domain: Domain | Callable[[FloatArray], FloatArray] | object,
     bbox: ArrayLike | None = None,
@@ -153,6 +163,7 @@ def as_domain(
         ``domain`` is none of these, or is a callable given without ``bbox``.
     """
     if isinstance(domain, Domain):
+        _check_extent(domain)
         return domain
     if not callable(domain):
         from .convert import to_domain
