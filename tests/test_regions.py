@@ -198,6 +198,26 @@ def test_tangent_regions_share_one_contact_node_and_say_so():
     assert np.sort(d)[1] > 0.05 * 0.05  # and no second one next to it
 
 
+@pytest.mark.parametrize("domain, region, area", [
+    (SQUARE, Circle((0.25, 0.5), 0.25), np.pi / 16),  # tangent to one side
+    (SQUARE, Circle((0.25, 0.25), 0.25), np.pi / 16),  # to two sides
+    (SQUARE, Circle((0.25, 0.25), 0.25) & SQUARE, np.pi / 16),  # the same, clipped (fuzzing)
+    (Circle((0, 0), 1), Circle((0.5, 0), 0.5), np.pi / 4),  # inside a circle, tangent to it
+])
+@pytest.mark.parametrize("h", [0.05, 0.02])
+def test_region_tangent_to_the_boundary(domain, region, area, h):
+    """A region touching the outer boundary at one point of tangency runs within 1e-6 of it
+    near the contact; its nodes there made triangles of zero area with the boundary's (an
+    invalid mesh).  Near the contact it now follows the boundary, says so, and the mesh is
+    valid with the region's area kept."""
+    with pytest.warns(UserWarning, match="runs within .* of the boundary"):
+        mesh = injmesh.generate(domain, h, regions={"r": region})
+    assert_valid_mesh(mesh, domain)
+    # The region is a polygon of chords about h long: its area falls short by ~(h/r)^2/6.
+    assert mesh.region_areas()[1] == pytest.approx(area, rel=(h / 0.25) ** 2 / 4)
+    assert mesh.quality().min() > 0.1
+
+
 def test_a_region_given_as_a_plain_function():
     disc = lambda q: np.hypot(q[:, 0] - 0.5, q[:, 1] - 0.5) - 0.3  # noqa: E731
     mesh = injmesh.generate(SQUARE, 0.06, regions={"disc": disc})

@@ -44,6 +44,11 @@ CROSSING_ITERATIONS = 20
 #: the contact by ~1e-3 h: kept apart, they became two nodes 4e-5 apart and a triangle with
 #: q = 0.001.  Two junctions this close could not be resolved by elements of size h anyway.
 JUNCTION_MERGE = 0.05
+#: A region's boundary within this fraction of h_min of the outer boundary, over a stretch,
+#: is taken to run along it (a region tangent to the boundary, or hugging it closer than any
+#: element could resolve): the stretch is the boundary's, and the region's curve meets the
+#: boundary where it leaves that band.
+BOUNDARY_MERGE = JUNCTION_MERGE
 #: Curves meeting at a smaller angle (degrees) at a junction get a warning: no triangle in
 #: that angle can be well shaped.
 NARROW_ANGLE = 10.0
@@ -239,6 +244,7 @@ def _region_pieces(
         raise RegionError(f"region {name!r}: {exc}") from None
     if not loops:
         raise RegionError(f"region {name!r} is empty")
+    merge = max(eps, BOUNDARY_MERGE * h_min)
     allv = np.concatenate(loops)
     out = domain.sdf(allv) > max(eps, tol.ON_BOUNDARY * region.diameter)
     if out.any():
@@ -252,8 +258,24 @@ def _region_pieces(
         if np.any(domain.sdf(mid) > eps):
             x, y = mid[np.argmax(domain.sdf(mid) > eps)]
             raise RegionError(f"region {name!r} extends outside the domain near ({x:.6g}, {y:.6g})")
-        # An edge along the outer boundary or along an earlier region is not a new curve.
-        drop = np.abs(domain.sdf(mid)) <= eps
+        # An edge along the outer boundary or along an earlier region is not a new curve.  Along
+        # the outer boundary "along" means within BOUNDARY_MERGE * h_min, ends included: a
+        # region tangent to the boundary comes within 1e-6 of it near the contact, and its
+        # nodes there made triangles of zero area with the boundary's.
+        hug = np.abs(domain.sdf(loop)) <= merge
+        dm = np.abs(domain.sdf(mid))
+        drop = (dm <= eps) | ((dm <= merge) & hug & np.roll(hug, -1))
+        merged = drop & (dm > eps)
+        if merged.any():
+            import warnings
+
+            x, y = mid[np.argmax(merged)]
+            warnings.warn(
+                f"region {name!r} runs within {BOUNDARY_MERGE:g} h of the boundary near "
+                f"({x:.6g}, {y:.6g}) (tangent to it?): it follows the boundary there, and the "
+                "triangles in the narrow angle where it leaves cannot be well shaped",
+                stacklevel=4,
+            )
         for e in earlier:
             drop |= np.abs(e.sdf(mid)) <= eps
         fixed = np.zeros(len(loop), dtype=bool)
@@ -280,7 +302,15 @@ def _region_pieces(
             idx = order[np.arange(run, end + 1) % len(loop)]  # end edge's far vertex included
             f = fixed[idx].copy()
             f[[0, -1]] = True
-            pieces.append(Piece(loop[idx], f, False, region.project, k))
+            pts = loop[idx]
+            # An end within the merge distance of the outer boundary (where a tangent stretch
+            # was dropped) is put on it: the junction joins the boundary.
+            ends = np.array([0, len(pts) - 1])
+            snap = ends[hug[idx[ends]] & (np.abs(domain.sdf(pts[ends])) > eps)]
+            if len(snap):
+                pts = pts.copy()
+                pts[snap] = domain.project(pts[snap])
+            pieces.append(Piece(pts, f, False, region.project, k))
             run = end
     return pieces
 
