@@ -13,7 +13,9 @@ rectangle, circle, or such a combination), the boundary of the result is compute
    of two operands that coincide (a shared edge kept by both) are kept once.
 3. **Chain.**  The kept pieces are joined end to start into closed loops; where several leave
    one vertex (operands touching at a point) the sharpest left turn is taken, so each loop
-   bounds one component.  Consecutive collinear segments (and co-circular arcs) are merged.
+   bounds one component.  Consecutive collinear segments (and co-circular arcs) are merged,
+   except at a point the boundary passes more than once: where operands are tangent, the
+   contact stays a vertex and :meth:`~.brep.BRep.cleaned` bridges the cusps there.
 
 The result is a :class:`~.brep.BRep`, whose distance, projection and corners are exact.
 """
@@ -101,8 +103,12 @@ def boolean_brep(expr: Domain) -> BRep | None:
         return None
     order = np.concatenate(loops)
     loop_start = np.r_[0, np.cumsum([len(lp) for lp in loops])]
+    # A vertex the boundary passes more than once (operands touching at a point, a circle
+    # tangent to an edge) stays a vertex, so cleaning can find the cusps there
+    # (BRep.cleaned): merged into a straight edge or an arc, the contact was no vertex.
+    touch = np.bincount(v0, minlength=int(max(v0.max(), v1.max())) + 1) > 1
     b0, b1, bc, bsw, loop_start = _merge_straight(
-        s0[order], s1[order], sc[order], ssw[order], loop_start, snap
+        s0[order], s1[order], sc[order], ssw[order], loop_start, snap, touch[v0[order]]
     )
     out = BRep.__new__(BRep)
     out._set_local(b0, b1, bc, bsw, loop_start, origin)
@@ -294,18 +300,19 @@ def _tangent(s0, s1, sc, ssw, at_end):  # type: ignore[no-untyped-def]
     return t / np.maximum(np.hypot(*t.T), 1e-300)[:, None]
 
 
-def _merge_straight(s0, s1, sc, ssw, loop_start, snap):  # type: ignore[no-untyped-def]
-    """Merge consecutive collinear segments and consecutive arcs of one circle."""
+def _merge_straight(s0, s1, sc, ssw, loop_start, snap, keep):  # type: ignore[no-untyped-def]
+    """Merge consecutive collinear segments and consecutive arcs of one circle, except into a
+    piece that starts at a vertex ``keep`` marks."""
     out0, out1, outc, outsw, starts = [], [], [], [], [0]
     for k in range(len(loop_start) - 1):
         idx = list(range(loop_start[k], loop_start[k + 1]))
-        pieces = [[s0[i].copy(), s1[i].copy(), sc[i].copy(), float(ssw[i])] for i in idx]
+        pieces = [[s0[i].copy(), s1[i].copy(), sc[i].copy(), float(ssw[i]), bool(keep[i])] for i in idx]
         merged = True
         while merged and len(pieces) > 2:
             merged = False
             for j in range(len(pieces)):
                 a, b = pieces[j], pieces[(j + 1) % len(pieces)]
-                if _joinable(a, b, snap):
+                if not b[4] and _joinable(a, b, snap):
                     a[1] = b[1]
                     a[3] = a[3] + b[3]
                     del pieces[(j + 1) % len(pieces)]
