@@ -288,3 +288,23 @@ def test_kernel_is_the_textbook_march_bit_for_bit(ny: int, nx: int, rate: float,
     dy = dx if seed % 2 else float(rng.uniform(0.01, 0.1))
     out = limit_gradient(h0, dx, dy, rate)
     assert np.array_equal(out.view(np.int64), _textbook_limit(h0, dx, dy, rate).view(np.int64))
+
+
+@pytest.mark.parametrize("make_domain", [
+    lambda: Rectangle((0.375, 0.5), (0.5, 0.75)),
+    lambda: Rectangle((0.25, 0.0), (0.5, 0.5)) | Rectangle((0.3, 0.45), (0.45, 0.6)),
+    lambda: (lambda p: np.maximum(np.abs(p[:, 0] - 0.375) - 0.125, np.abs(p[:, 1] - 0.5) - 0.25)),
+])
+def test_a_size_that_jumps_on_the_boundary_is_limited_there(make_domain) -> None:
+    """h jumps from 0.02 to 0.08 exactly on the domain's side x = 0.5.  No grid node lies on
+    that line, so every node inside agreed with h and h came back unchanged: the side was
+    meshed at 0.08 against 0.02 inside, q_min 0.01 (found by fuzzing)."""
+    domain = make_domain()
+    h = lambda p: np.where(p[:, 0] < 0.5, 0.02, 0.08)  # noqa: E731
+    bbox = (0.25, 0.25, 0.5, 0.75) if not isinstance(domain, injmesh.Domain) else None
+    mesh = injmesh.generate(domain, h, bbox=bbox)
+    assert mesh.quality().min() > 0.7
+    p, e = mesh.points, mesh.boundary_edges
+    on_side = np.all(np.abs(p[e][:, :, 0] - 0.5) < 1e-9, axis=1)
+    assert on_side.sum() > 0
+    assert np.hypot(*(p[e[on_side, 1]] - p[e[on_side, 0]]).T).max() < 0.04
