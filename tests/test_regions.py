@@ -249,6 +249,24 @@ def test_region_outside_the_domain():
         injmesh.generate(SQUARE, 0.1, regions={"far": Circle((0.95, 0.5), 0.2)})
 
 
+def test_region_edge_cutting_across_a_corner_of_a_hole():
+    """The triangle's vertices and edge midpoints are inside, but one edge cuts across the
+    rectangular hole's corner (0.4, 0.8): its nodes there were outside and the mesh invalid
+    (found by fuzzing); now refused by name."""
+    domain = SQUARE - Rectangle((0.2, 0.5), (0.4, 0.8))
+    tri = injmesh.Polygon([(0.3, 0.85), (0.9, 0.3), (0.9, 0.85)])
+    with pytest.raises(RegionError, match="region 'tri' extends outside the domain"):
+        injmesh.generate(domain, 0.05, regions={"tri": tri})
+
+
+def test_a_hole_inside_a_region_is_left_out_of_it():
+    """A region wholly around a hole is taken within the domain (not refused)."""
+    domain = SQUARE - Circle((0.5, 0.5), 0.1)
+    mesh = injmesh.generate(domain, 0.05, regions={"ring": Circle((0.5, 0.5), 0.3)})
+    assert_valid_mesh(mesh, domain)
+    assert mesh.region_areas()[1] == pytest.approx(np.pi * (0.09 - 0.01), rel=1e-2)
+
+
 def test_overlapping_regions():
     with pytest.raises(RegionError, match=r"regions 'a' and 'b' overlap near \("):
         injmesh.generate(SQUARE, 0.1, regions={"a": Circle((0.4, 0.5), 0.2), "b": Circle((0.6, 0.5), 0.2)})

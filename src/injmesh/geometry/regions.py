@@ -250,6 +250,7 @@ def _region_pieces(
     if out.any():
         x, y = allv[np.argmax(out)]
         raise RegionError(f"region {name!r} extends outside the domain near ({x:.6g}, {y:.6g})")
+    _check_region_edges(domain, name, region, loops, h_min, eps)
     corners = region.corners()
     pieces = []
     for loop in loops:
@@ -313,6 +314,40 @@ def _region_pieces(
             pieces.append(Piece(pts, f, False, region.project, k))
             run = end
     return pieces
+
+
+def _check_region_edges(domain: Domain, name: str, region: Domain, loops: list[FloatArray],
+                        h_min: float, eps: float) -> None:
+    """A region's edges must stay inside the domain between their vertices too.
+
+    A polygon region's loop is its vertices: an edge that cuts across a reflex corner of the
+    domain (a notch, a rectangular hole) with both ends and its midpoint inside went
+    unnoticed, and its interface nodes outside made an invalid mesh (found by fuzzing).  The
+    edges are sampled every quarter h_min (on the region's boundary), and a corner of the
+    domain strictly inside the region within 2 h_min of the region's boundary is an edge
+    cutting across it.  (A hole wholly inside a region, far from its boundary, is allowed: the
+    region is taken within the domain.)
+    """
+    for loop in loops:
+        nxt = np.roll(loop, -1, axis=0)
+        n = np.maximum(1, np.ceil(np.hypot(*(nxt - loop).T) / (0.25 * h_min)).astype(int))
+        if np.all(n == 1):
+            continue
+        k = np.repeat(np.arange(len(loop)), n)
+        t = (np.arange(len(k)) - np.repeat(np.cumsum(n) - n, n)) / n[k]
+        q = region.project(loop[k] + t[:, None] * (nxt[k] - loop[k]))
+        out = domain.sdf(q) > eps
+        if out.any():
+            x, y = q[np.argmax(out)]
+            raise RegionError(f"region {name!r} extends outside the domain near ({x:.6g}, {y:.6g})")
+    corners = domain.corners()
+    if len(corners):
+        d = region.sdf(corners)
+        cut = (d < -max(eps, 1e-3 * h_min)) & (d > -2.0 * h_min)
+        if cut.any():
+            x, y = corners[np.argmax(cut)]
+            raise RegionError(f"region {name!r} extends outside the domain: its boundary cuts across "
+                              f"the domain's corner at ({x:.6g}, {y:.6g})")
 
 
 def _check_overlaps(names: list[str], doms: list[Domain], h_min: float, eps: float) -> None:
