@@ -218,6 +218,16 @@ def test_region_tangent_to_the_boundary(domain, region, area, h):
     assert mesh.quality().min() > 0.1
 
 
+def test_a_sharp_kink_in_a_curve_is_reported():
+    """A crack drawn with a 3-degree kink: no triangle in that angle can be well shaped, and
+    the user hears so, with the bound."""
+    crack = np.array([(0.2721, 0.1914), (0.3478, 0.1949), (0.3324, 0.1463), (0.3567, 0.2114)])
+    said = r"'crack' bends back on itself at \(0\.3324, 0\.1463\) at 2\.9 degrees"
+    with pytest.warns(UserWarning, match=said):
+        mesh = injmesh.generate(SQUARE, 0.02, curves={"crack": crack})
+    assert_valid_mesh(mesh, SQUARE)
+
+
 def test_a_region_given_as_a_plain_function():
     disc = lambda q: np.hypot(q[:, 0] - 0.5, q[:, 1] - 0.5) - 0.3  # noqa: E731
     mesh = injmesh.generate(SQUARE, 0.06, regions={"disc": disc})
