@@ -438,7 +438,10 @@ class BRep(Domain):
         """
         uniq, inv, count = np.unique(self._p0, axis=0, return_inverse=True, return_counts=True)
         inv = inv.ravel()
-        if not (width > 0 and np.any(count > 1)):
+        # A cusp the boundary passes once: an arc arriving tangent to the next piece and
+        # turning back along it (a disc cutting a rectangle tangent to its side at a corner).
+        back = np.flatnonzero(np.abs(self._turns()) > 180.0 - CUSP_TURN)
+        if not (width > 0 and (np.any(count > 1) or len(back))):
             return self, 0
         t_start, t_end = self._tangents(False), self._tangents(True)
         end_id = np.full(len(self._p1), -1)
@@ -449,9 +452,18 @@ class BRep(Domain):
         cos_cusp = math.cos(math.radians(CUSP_TURN))
         bridges: list[tuple[int, int, FloatArray, FloatArray]] = []
         taken_out: set[int] = set()
+        for i in back.tolist():
+            o = int(self._nxt[i])
+            if o != i:
+                cut = _bridge(self, i, o, width, float(min(length[i], length[o])))
+                if cut is not None:
+                    bridges.append((i, o, *cut))
+                    taken_out.add(o)
         for v in np.flatnonzero(count > 1).tolist():
             outs = np.flatnonzero(inv == v).tolist()
             for i in np.flatnonzero(end_id == v).tolist():
+                if any(i == j for j, _, _, _ in bridges):
+                    continue
                 for o in outs:
                     # i arrives at v and o leaves it back the way i came: a cusp.
                     if o in taken_out or o == i or float(np.dot(-t_end[i], t_start[o])) < cos_cusp:
@@ -490,7 +502,7 @@ class BRep(Domain):
         out._set_local(s0[order], s1[order], sc[order], ssw[order], starts, self._origin)
         import warnings
 
-        at = np.unique([uniq[inv[o]] + self._origin for _, o, _, _ in bridges], axis=0)
+        at = np.unique([self._p0[o] + self._origin for _, o, _, _ in bridges], axis=0)
         where = ", ".join(f"({x:.6g}, {y:.6g})" for x, y in at[:4].tolist())
         # stacklevel: here, cleaned, the set operation's cleaned, the pipeline, generate.
         warnings.warn(f"{len(bridges)} cusp(s) where the boundary touches itself tangentially, at "
