@@ -310,8 +310,6 @@ def test_a_cusp_at_a_corner_is_bridged(h) -> None:
     p, t = mesh.points, mesh.triangles
     a, b = p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]
     covered = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum()
-    # The bridge cuts the tip off where it is w = h/4 wide, s = sqrt(2 r w) from the contact:
-    # about (2/3) s w of area (a large part of this sliver at h = 0.04).
-    w = 0.25 * h
-    cut = 2 / 3 * math.sqrt(2 * 0.25 * w) * w
-    assert area - 1.5 * cut < covered < area * (1 + 1e-3)
+    # The sliver is thinner than h all along: the bridge is where it is a tenth of its widest
+    # (at h/4 it took 56 % of the area), which takes about 0.1^1.5 of it.
+    assert area * 0.96 < covered < area * (1 + 1e-3)
