@@ -172,6 +172,22 @@ def test_regions_touching_each_other_and_the_boundary():
     assert all(tuple(e) in edges for e in np.sort(mesh.curve_edges, axis=1).tolist())
 
 
+def test_region_side_partly_on_the_boundary():
+    """The region's right side x = 1 is on the outer boundary below y = 0.3 and above 0.7 and
+    inside the domain between them (a disc bulges out there).  Kept whole as an interface, it
+    lay on the boundary: lost segments (found by fuzzing).  The domain's corners on it split it."""
+    domain = SQUARE | Circle((1, 0.5), 0.2)
+    box = Rectangle((0.5, 0.1), (1, 0.9))
+    mesh = injmesh.generate(domain, 0.05, regions={"box": box})
+    assert_valid_mesh(mesh, domain)
+    assert mesh.region_areas()[1] == pytest.approx(0.4, rel=1e-9)
+    p = mesh.points
+    side = p[mesh.curve_edges]
+    on_x1 = np.all(np.abs(side[:, :, 0] - 1) < 1e-12, axis=1)
+    assert on_x1.any()  # the part inside the domain is an interface ...
+    assert np.all(np.abs(side[on_x1][:, :, 1] - 0.5) <= 0.2 + 1e-9)  # ... only it (0.3 to 0.7)
+
+
 def test_crack_crossing_an_inclusion_meets_it_at_a_node():
     disc = Circle((0.5, 0.5), 0.25)
     line = np.array([(0.1, 0.5), (0.9, 0.5)])
