@@ -158,7 +158,7 @@ def _check(mesh: Any, dom: Any, regions: dict[str, Any]) -> dict[str, Any]:
             r = exact._r[arc]
             t = np.minimum(longest / r, np.pi)
             chords = float(np.sum(np.abs(exact._sw[arc]) / t * r * r * (t - np.sin(t)) / 2))
-        slack = AREA_TOL * want + chords + 0.05 * want * mesh.stats.cleaning.get("cusps", 0)
+        slack = AREA_TOL * want + 1.5 * chords + 0.05 * want * mesh.stats.cleaning.get("cusps", 0)
         if abs(float(area.sum()) - want) > slack:
             res.update(status="invalid",
                        detail=f"area {area.sum():.6g} against {want:.6g} (slack {slack:.3g})")
