@@ -1,0 +1,434 @@
+"""The repair rounds' bookkeeping (``smoothing._repair_rounds``) as numba kernels.
+
+A repair round on one of the paper's small cases works on a sub-mesh of a few hundred
+triangles: its NumPy lines (the bad triangles and their edges' midpoints, the choice of edits,
+the collapse and split renumbering, the neighbour table before the flips, quality, chords and
+each part's minimum, a patch's extraction) were hundreds of calls of 1-5 us each per round, more
+than the work.  Each kernel here does one of those steps in one call, with the numbers of the
+NumPy lines it replaced (the same operations on the same doubles, the same orders and ties).
+
+Arrays are int64 and float64 (each kernel is compiled for one signature); masks are
+``np.bool_``.
+
+Examples
+--------
+>>> import numpy as np
+>>> from injmesh.kernels.repair import components
+>>> components(np.array([[0, 1, 2], [3, 4, 5]]), 7)[0].tolist()
+[0, 0, 0, 1, 1, 1, 2]
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .delaunay import flip_rows_to_delaunay, flip_to_delaunay
+from .mesh import by_least_vertex, neighbours, triangle_quality
+from .smooth import adjacency, rings
+
+
+@njit(cache=True)
+def _root(parent, v):  # type: ignore[no-untyped-def]
+    while parent[v] != v:
+        parent[v] = parent[parent[v]]
+        v = parent[v]
+    return v
+
+
+@njit(cache=True)
+def components(tri, n):  # type: ignore[no-untyped-def]
+    """The connected parts of the graph of the triangles' edges over ``n`` nodes: each node's
+    part, numbered in the order of the parts' least nodes (a node in no triangle is a part of
+    its own), and the number of parts.  Returns ``(label (n,) int64, parts)``."""
+    parent = np.arange(n)
+    for t in range(tri.shape[0]):
+        a = _root(parent, tri[t, 0])
+        for k in range(1, 3):
+            b = _root(parent, tri[t, k])
+            if a != b:
+                if b < a:
+                    a, b = b, a
+                parent[b] = a
+    label = np.empty(n, dtype=np.int64)
+    parts = 0
+    for v in range(n):
+        r = _root(parent, v)
+        if r == v:
+            label[v] = parts
+            parts += 1
+        else:
+            label[v] = label[r]
+    return label, parts
+
+
+@njit(cache=True)
+def chords(p, tri, n_boundary, seg_keys, key):  # type: ignore[no-untyped-def]
+    """For each triangle of three boundary nodes (``< n_boundary``): the local index k of its
+    edge ``(t[k], t[k+1])`` to split, or -1 (``smoothing._chords``: its longest edge, by
+    ``hypot`` with the first of equal lengths, when that is not among the sorted edge keys
+    ``seg_keys`` (``min * key + max``) and the triangle across it has a free node)."""
+    m = tri.shape[0]
+    out = np.full(m, -1, dtype=np.int64)
+    cand = np.empty(m, dtype=np.int64)
+    kk = np.empty(m, dtype=np.int64)
+    c = 0
+    for t in range(m):
+        if max(tri[t, 0], tri[t, 1], tri[t, 2]) >= n_boundary:
+            continue
+        best = -1.0
+        k = 0
+        for j in range(3):
+            a, b = tri[t, j], tri[t, (j + 1) % 3]
+            d = math.hypot(p[a, 0] - p[b, 0], p[a, 1] - p[b, 1])
+            if d > best or j == 0:
+                best = d
+                k = j
+        a, b = tri[t, k], tri[t, (k + 1) % 3]
+        e = min(a, b) * key + max(a, b)
+        at = np.searchsorted(seg_keys, e)
+        if at < seg_keys.shape[0] and seg_keys[at] == e:
+            continue
+        cand[c] = t
+        kk[c] = k
+        c += 1
+    if c == 0:
+        return out
+    # The triangle across edge k (opposite corner k + 2) is split with it: it must have a free
+    # node (see smoothing._chords).
+    nbr = neighbours(tri, p.shape[0])
+    for r in range(c):
+        t, k = cand[r], kk[r]
+        u = nbr[t, (k + 2) % 3]
+        if u >= 0 and max(tri[u, 0], tri[u, 1], tri[u, 2]) < n_boundary:
+            continue
+        out[t] = k
+    return out
+
+
+@njit(cache=True)
+def round_state(p, tri, n_boundary, n_fixed, seg_keys, key, label, parts, pinned, repair_q):  # type: ignore[no-untyped-def]
+    """What the repair rounds need of a round's mesh: each triangle's quality q (Eq. 5.1),
+    chord (:func:`chords`), whether a round can change it (a free node or a chord), each
+    part's least q over all its triangles and over those a round can change (``inf`` where
+    none), and the triangles a round repairs: q below ``repair_q``, changeable, in a part not
+    ``pinned``, worst first (ties in row order).
+
+    Returns ``(q, chord, changeable, score, score_changeable, bad)``."""
+    m = tri.shape[0]
+    q = triangle_quality(p, tri)
+    chord = chords(p, tri, n_boundary, seg_keys, key)
+    changeable = np.empty(m, dtype=np.bool_)
+    score = np.full(parts, np.inf)
+    score_c = np.full(parts, np.inf)
+    nb = 0
+    for t in range(m):
+        changeable[t] = max(tri[t, 0], tri[t, 1], tri[t, 2]) >= n_fixed or chord[t] >= 0
+        part = label[tri[t, 0]]
+        score[part] = min(score[part], q[t])
+        if changeable[t]:
+            score_c[part] = min(score_c[part], q[t])
+            if q[t] < repair_q and not pinned[part]:
+                nb += 1
+    bad = np.empty(nb, dtype=np.int64)
+    b = 0
+    for t in range(m):
+        if changeable[t] and q[t] < repair_q and not pinned[label[tri[t, 0]]]:
+            bad[b] = t
+            b += 1
+    qb = np.empty(nb)
+    for r in range(nb):
+        qb[r] = q[bad[r]]
+    bad = bad[np.argsort(qb, kind="mergesort")]
+    return q, chord, changeable, score, score_c, bad
+
+
+@njit(cache=True)
+def edge_midpoints(p, tri, bad):  # type: ignore[no-untyped-def]
+    """The midpoints of the edges ``(t[k], t[k+1])`` of the triangles ``bad``, ``(3 len, 2)``
+    row by row: where h gives their desired lengths."""
+    mid = np.empty((3 * bad.shape[0], 2))
+    for r in range(bad.shape[0]):
+        for k in range(3):
+            a, b = tri[bad[r], k], tri[bad[r], (k + 1) % 3]
+            mid[3 * r + k, 0] = 0.5 * (p[a, 0] + p[b, 0])
+            mid[3 * r + k, 1] = 0.5 * (p[a, 1] + p[b, 1])
+    return mid
+
+
+@njit(cache=True)
+def choose_edits(p, tri, bad, chord, h_mid, n_fixed):  # type: ignore[no-untyped-def]
+    """``smoothing._choose_repairs`` after h: the edge operations for the triangles ``bad``
+    (worst first) whose edges' desired lengths are ``h_mid`` (:func:`edge_midpoints`).
+
+    In each triangle the edge furthest from h (length over h: the shortest if it is further
+    below 1 than the longest is above, the first of equal ratios) is collapsed or split, its
+    chord split if it has one; a collapse keeps a fixed node and drops the free one; an edge
+    between two fixed nodes is left alone but for a chord.  An operation is dropped unless it
+    is the first, in this order, to use each of its two nodes, and the first with its edge.
+
+    Returns ``(collapse (c, 2), split (s, 2))`` int64, collapse rows ``(keep, drop)``."""
+    nb = bad.shape[0]
+    n = p.shape[0]
+    ea = np.empty(nb, dtype=np.int64)
+    eb = np.empty(nb, dtype=np.int64)
+    col = np.empty(nb, dtype=np.bool_)
+    ratio = np.empty(3)
+    c = 0
+    for r in range(nb):
+        t = bad[r]
+        for k in range(3):
+            a, b = tri[t, k], tri[t, (k + 1) % 3]
+            ratio[k] = math.hypot(p[a, 0] - p[b, 0], p[a, 1] - p[b, 1]) / h_mid[3 * r + k]
+        short = 0
+        long_ = 0
+        for k in range(1, 3):
+            if ratio[k] < ratio[short]:
+                short = k
+            if ratio[k] > ratio[long_]:
+                long_ = k
+        capped = chord[t] >= 0
+        do_collapse = (1.0 - ratio[short]) > (ratio[long_] - 1.0) and not capped
+        k = chord[t] if capped else (short if do_collapse else long_)
+        a, b = tri[t, k], tri[t, (k + 1) % 3]
+        if do_collapse and b < n_fixed:
+            a, b = b, a
+        if b >= n_fixed or (not do_collapse and a >= n_fixed) or capped:
+            ea[c], eb[c], col[c] = a, b, do_collapse
+            c += 1
+    first = np.full(n, c, dtype=np.int64)
+    for i in range(c - 1, -1, -1):
+        first[ea[i]] = i
+        first[eb[i]] = i
+    # The same edge chosen twice: the first one (it already fails the node test above, as
+    # its nodes were used before, but the rule is the edge's).
+    key = np.empty(c, dtype=np.int64)
+    for i in range(c):
+        key[i] = min(ea[i], eb[i]) * n + max(ea[i], eb[i])
+    order = np.argsort(key, kind="mergesort")
+    once = np.zeros(c, dtype=np.bool_)
+    for s in range(c):
+        if s == 0 or key[order[s]] != key[order[s - 1]]:
+            once[order[s]] = True
+    n_col = 0
+    n_split = 0
+    ok = np.empty(c, dtype=np.bool_)
+    for i in range(c):
+        ok[i] = first[ea[i]] == i and first[eb[i]] == i and once[i]
+        if ok[i]:
+            if col[i]:
+                n_col += 1
+            else:
+                n_split += 1
+    collapse = np.empty((n_col, 2), dtype=np.int64)
+    split = np.empty((n_split, 2), dtype=np.int64)
+    n_col = 0
+    n_split = 0
+    for i in range(c):
+        if not ok[i]:
+            continue
+        if col[i]:
+            collapse[n_col, 0], collapse[n_col, 1] = ea[i], eb[i]
+            n_col += 1
+        else:
+            split[n_split, 0], split[n_split, 1] = ea[i], eb[i]
+            n_split += 1
+    return collapse, split
+
+
+@njit(cache=True)
+def apply_edits(p, tri, kept, label, collapse, split, n_fixed):  # type: ignore[no-untyped-def]
+    """A round's edge operations on the arrays (they share no node).
+
+    Collapse ``(keep, drop)``: drop disappears, keep moves to the midpoint unless it is fixed,
+    drop's triangles are keep's and those that had both go.  Split ``a-b``: a new node at the
+    midpoint (after the collapses' moves), numbered after the surviving nodes in the order of
+    ``split``; each triangle ``(a, b, w)`` on the edge becomes ``(a, m, w)`` in its row and
+    ``(m, b, w)`` appended, in row order.  The surviving nodes keep their order.  The result
+    may have inverted triangles.
+
+    Returns ``(p, tri, kept, label, touched)``: the new points, triangles, ``kept`` (-1 for a
+    new node), ``label`` (a new node joins its edge's part) and the nodes the operations
+    touched in the new numbering (keepers, split ends, new nodes)."""
+    n = p.shape[0]
+    nc = collapse.shape[0]
+    ns = split.shape[0]
+    q = p.copy()
+    alive = np.ones(n, dtype=np.bool_)
+    for r in range(nc):
+        a, b = collapse[r, 0], collapse[r, 1]
+        if a >= n_fixed:
+            q[a, 0] = 0.5 * (p[a, 0] + p[b, 0])
+            q[a, 1] = 0.5 * (p[a, 1] + p[b, 1])
+        alive[b] = False
+    index = np.empty(n + ns, dtype=np.int64)
+    w = 0
+    for v in range(n):
+        index[v] = w - 1 if not alive[v] else w
+        if alive[v]:
+            w += 1
+    n_alive = w
+    for s in range(ns):
+        index[n + s] = n_alive + s
+    out_p = np.empty((n_alive + ns, 2))
+    out_kept = np.empty(n_alive + ns, dtype=np.int64)
+    out_label = np.empty(n_alive + ns, dtype=np.int64)
+    for v in range(n):
+        if alive[v]:
+            i = index[v]
+            out_p[i, 0], out_p[i, 1] = q[v, 0], q[v, 1]
+            out_kept[i] = kept[v]
+            out_label[i] = label[v]
+    for s in range(ns):
+        a, b = split[s, 0], split[s, 1]
+        out_p[n_alive + s, 0] = 0.5 * (q[a, 0] + q[b, 0])
+        out_p[n_alive + s, 1] = 0.5 * (q[a, 1] + q[b, 1])
+        out_kept[n_alive + s] = -1
+        out_label[n_alive + s] = label[a]
+    # Split edges by node (each node in one operation at most).
+    op = np.full(n, -1, dtype=np.int64)
+    for s in range(ns):
+        op[split[s, 0]] = s
+        op[split[s, 1]] = s
+    m = tri.shape[0]
+    t = np.empty((m + 2 * ns, 3), dtype=np.int64)
+    for r in range(m):
+        t[r, 0], t[r, 1], t[r, 2] = tri[r, 0], tri[r, 1], tri[r, 2]
+    rows = m
+    if ns:
+        for r in range(m):
+            for k in range(3):
+                u, v = tri[r, k], tri[r, (k + 1) % 3]
+                s = op[u]
+                if s >= 0 and op[v] == s:
+                    mid = n + s
+                    w3 = tri[r, (k + 2) % 3]
+                    t[r, 0], t[r, 1], t[r, 2] = u, mid, w3
+                    t[rows, 0], t[rows, 1], t[rows, 2] = mid, v, w3
+                    rows += 1
+    rename = np.arange(n + ns)
+    for r in range(nc):
+        rename[collapse[r, 1]] = collapse[r, 0]
+    out_tri = np.empty((rows, 3), dtype=np.int64)
+    c = 0
+    for r in range(rows):
+        a, b, d = rename[t[r, 0]], rename[t[r, 1]], rename[t[r, 2]]
+        if a != b and b != d and d != a:
+            out_tri[c, 0], out_tri[c, 1], out_tri[c, 2] = index[a], index[b], index[d]
+            c += 1
+    touched = np.empty(nc + 3 * ns, dtype=np.int64)
+    for r in range(nc):
+        touched[r] = index[collapse[r, 0]]
+    for s in range(ns):
+        touched[nc + 2 * s] = index[split[s, 0]]
+        touched[nc + 2 * s + 1] = index[split[s, 1]]
+    for s in range(ns):
+        touched[nc + 2 * ns + s] = n_alive + s
+    return out_p, out_tri[:c].copy(), out_kept, out_label, touched
+
+
+@njit(cache=True)
+def flip_near(p, tri, near, everywhere):  # type: ignore[no-untyped-def]
+    """Lawson flips (exact predicates, edges with one triangle kept) on a copy of ``tri``,
+    started from the triangles of the nodes ``near``, in row order (from every triangle with
+    ``everywhere``): the neighbour table and the vertex-to-triangle map are made here.  Returns
+    ``(res, tri)`` as :func:`~injmesh.kernels.delaunay.flip_rows_to_delaunay` (negative: an
+    inverted or flat triangle, or no triangles at all), ``tri`` as int32."""
+    n = p.shape[0]
+    m = tri.shape[0]
+    t32 = np.empty((m, 3), dtype=np.int32)
+    for r in range(m):
+        for k in range(3):
+            t32[r, k] = tri[r, k]
+    if m == 0:
+        return -1, t32
+    nbr = neighbours(t32, n).astype(np.int32)
+    vt = np.full(n, -1, dtype=np.int32)
+    for r in range(m):
+        for k in range(3):
+            vt[t32[r, k]] = r
+    con = np.zeros((m, 3), dtype=np.uint8)
+    if everywhere:
+        return flip_to_delaunay(p, t32, nbr, con, vt), t32
+    mark = np.zeros(n, dtype=np.bool_)
+    for v in near:
+        mark[v] = True
+    rows = np.empty(m, dtype=np.int32)
+    c = 0
+    for r in range(m):
+        if mark[t32[r, 0]] or mark[t32[r, 1]] or mark[t32[r, 2]]:
+            rows[c] = r
+            c += 1
+    return flip_rows_to_delaunay(p, t32, nbr, con, vt, rows[:c]), t32
+
+
+@njit(cache=True)
+def patch_of(tri, n, indptr, adj, touched, ring, slide, walls, n_fixed):  # type: ignore[no-untyped-def]
+    """A repair patch (``smoothing._patch_local``) cut from the triangles ``tri`` over ``n``
+    nodes: the nodes within ``ring`` edges of ``touched`` move, every triangle with a node
+    within ``ring + 1`` is in the patch.  ``indptr, adj``: the node lists of ``tri``
+    (:func:`~injmesh.kernels.smooth.adjacency`, free slots allowed), made here when empty.
+
+    Returns ``(rows, nodes, t32, nbr, active, slide, walls, n_fixed)``: the rows of ``tri`` in
+    the patch (increasing), its nodes (sorted), its triangles in its numbering ordered by their
+    least node (ties in row order) as int32 with their neighbour table, which of its nodes
+    move, the sliding rows ``slide (k, 3)`` of moving nodes and the segments ``walls`` whose
+    nodes are all in it (renumbered), and how many of its nodes come before ``n_fixed``."""
+    if indptr.shape[0] == 0:
+        indptr, adj, _, _ = adjacency(n, tri, 0)
+    active = rings(indptr, adj, touched, ring)
+    near = rings(indptr, adj, touched, ring + 1)
+    m = tri.shape[0]
+    rows = np.empty(m, dtype=np.int64)
+    inv = np.full(n, -1, dtype=np.int64)
+    c = 0
+    for r in range(m):
+        if near[tri[r, 0]] or near[tri[r, 1]] or near[tri[r, 2]]:
+            rows[c] = r
+            c += 1
+            for k in range(3):
+                inv[tri[r, k]] = 0
+    rows = rows[:c].copy()
+    nn = 0
+    local_fixed = 0
+    for v in range(n):
+        if inv[v] == 0:
+            inv[v] = nn
+            nn += 1
+            if v < n_fixed:
+                local_fixed += 1
+    nodes = np.empty(nn, dtype=np.int64)
+    moving = np.empty(nn, dtype=np.bool_)
+    for v in range(n):
+        if inv[v] >= 0:
+            nodes[inv[v]] = v
+            moving[inv[v]] = active[v]
+    local = np.empty((c, 3), dtype=np.int64)
+    for a in range(c):
+        for k in range(3):
+            local[a, k] = inv[tri[rows[a], k]]
+    order = by_least_vertex(local, nn)
+    t32 = np.empty((c, 3), dtype=np.int32)
+    for a in range(c):
+        for k in range(3):
+            t32[a, k] = local[order[a], k]
+    nbr = neighbours(t32, nn).astype(np.int32)
+    ks = 0
+    sl = np.empty(slide.shape, dtype=np.int64)
+    for r in range(slide.shape[0]):
+        if not active[slide[r, 0]]:
+            continue
+        i0, i1, i2 = inv[slide[r, 0]], inv[slide[r, 1]], inv[slide[r, 2]]
+        if i0 >= 0 and i1 >= 0 and i2 >= 0:
+            sl[ks, 0], sl[ks, 1], sl[ks, 2] = i0, i1, i2
+            ks += 1
+    kw = 0
+    wl = np.empty(walls.shape, dtype=np.int64)
+    for r in range(walls.shape[0]):
+        i0, i1 = inv[walls[r, 0]], inv[walls[r, 1]]
+        if i0 >= 0 and i1 >= 0:
+            wl[kw, 0], wl[kw, 1] = i0, i1
+            kw += 1
+    return rows, nodes, t32, nbr, moving, sl[:ks].copy(), wl[:kw].copy(), local_fixed
