@@ -14,13 +14,17 @@ from injmesh.kernels.delaunay import flip_rows_to_delaunay, flip_to_delaunay
 from injmesh.kernels.mesh import by_least_vertex, neighbours
 from injmesh.kernels.repair import (
     apply_edits,
+    canonical,
     choose_edits,
     chords,
     components,
     edge_midpoints,
     flip_near,
+    patch_merge,
     patch_of,
     round_state,
+    stitch,
+    sub_mesh_of,
 )
 from injmesh.kernels.smooth import adjacency, rings
 from injmesh.quality import triangle_quality
@@ -321,3 +325,103 @@ def test_hypot_as_numpy() -> None:
     rng = np.random.default_rng(0)
     x, y = rng.normal(0.0, 1.0, (2, 100_000)) * 10.0 ** rng.integers(-8, 8, (2, 100_000))
     assert np.array_equal(lengths(x, y), np.hypot(x, y))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_canonical_is_the_sorted_set(seed: int) -> None:
+    p, tri = _mesh(seed)
+    rng = np.random.default_rng(seed)
+    # The same set of triangles, rows shuffled and rotated: the same canonical form.
+    shuffled = np.roll(tri[rng.permutation(len(tri))], int(rng.integers(1, 3)), axis=1)
+    t = np.sort(tri, axis=1)
+    want = t[np.lexsort(t.T[::-1])]
+    assert np.array_equal(canonical(tri), want)
+    assert np.array_equal(canonical(np.ascontiguousarray(shuffled)), want)
+    # Node numbers beyond one key's 21 bits: the stable sorts, the same order.
+    big = tri + (1 << 22)
+    assert np.array_equal(canonical(np.ascontiguousarray(big[rng.permutation(len(big))])), want + (1 << 22))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_patch_merge_matches_numpy(seed: int) -> None:
+    p, tri = _mesh(seed)
+    rng = np.random.default_rng(seed)
+    rows = np.flatnonzero(rng.random(len(tri)) < 0.3).astype(np.int64)
+    nodes = np.unique(tri[rows])
+    inv = np.full(len(p), -1, dtype=np.int64)
+    inv[nodes] = np.arange(len(nodes))
+    patch_tri = np.ascontiguousarray(inv[tri[rows]][::-1])
+    patch_p = rng.random((len(nodes), 2))
+    out, out_tri = patch_merge(p, tri, rows, nodes, patch_p, patch_tri)
+    in_patch = np.zeros(len(tri), dtype=bool)
+    in_patch[rows] = True
+    want = p.copy()
+    want[nodes] = patch_p
+    assert np.array_equal(out, want)
+    assert np.array_equal(out_tri, np.concatenate([tri[~in_patch], nodes[patch_tri]]))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_sub_mesh_and_stitch_match_numpy(seed: int) -> None:
+    """The repair's sub-mesh and the stitch of its result, as smoothing._repair cut them."""
+    p, tri = _mesh(seed, n=300)
+    rng = np.random.default_rng(seed)
+    n_fixed = 12
+    b = np.arange(12, dtype=np.int64)
+    slide = np.stack([b, np.roll(b, 1), np.roll(b, -1)], axis=1)
+    walls = np.stack([b, np.roll(b, -1)], axis=1)
+    curves = np.ascontiguousarray(tri[rng.integers(0, len(tri), 5)][:, :2])
+    indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32), 3)
+    q = triangle_quality(p, tri)
+    repair_q = float(np.quantile(q, 0.03))
+    reach, band = 2, 1
+    got = sub_mesh_of(p, tri, indptr, adj, repair_q, reach, band, n_fixed, slide, walls, curves)
+    nodes, n_boundary, nf, inner, t32, nbr, sl, wl, cv, outer_q = got
+    # The NumPy lines it replaced.
+    bad = q < repair_q
+    seeds = np.unique(tri[bad]).astype(np.int64)
+    movable = rings(indptr, adj, seeds, reach)
+    span = rings(indptr, adj, seeds, reach + band)
+    ref_inner = span[tri].all(axis=1)
+    ref_nodes = np.unique(tri[ref_inner])
+    free = ref_nodes >= n_fixed
+    stay = free & ~movable[ref_nodes]
+    ref_nodes = np.concatenate([ref_nodes[~free], ref_nodes[stay], ref_nodes[free & ~stay]])
+    inv = np.full(len(p), -1, dtype=np.intp)
+    inv[ref_nodes] = np.arange(len(ref_nodes))
+    ref_slide = inv[slide[movable[slide[:, 0]]]]
+    local = inv[tri[ref_inner]]
+    local = local[by_least_vertex(local, len(ref_nodes))]
+    assert np.array_equal(nodes, ref_nodes) and np.array_equal(inner, ref_inner)
+    assert n_boundary == np.count_nonzero(~free) and nf == n_boundary + np.count_nonzero(stay)
+    assert np.array_equal(t32, local) and t32.dtype == np.int32
+    assert np.array_equal(nbr, np.asarray(neighbours(np.ascontiguousarray(local, dtype=np.int32),
+                                                     len(ref_nodes)), dtype=np.int32))
+    assert np.array_equal(sl, ref_slide[(ref_slide >= 0).all(axis=1)])
+    assert np.array_equal(wl, inv[walls][(inv[walls] >= 0).all(axis=1)])
+    assert np.array_equal(cv, inv[curves][(inv[curves] >= 0).all(axis=1)])
+    assert outer_q == q[~ref_inner].min()
+    assert len(sub_mesh_of(p, tri, indptr, adj, 0.0, reach, band, n_fixed, slide, walls, curves)[0]) == 0
+
+    # A result of the rounds: a few nodes dropped, two new ones, triangles reshuffled.
+    m = len(nodes)
+    sub_kept = np.concatenate([rng.permutation(m)[: m - 3], [-1, -1]]).astype(np.int64)
+    sub_p = rng.random((len(sub_kept), 2))
+    sub_tri = rng.integers(0, len(sub_kept), (len(local) - 1, 3)).astype(np.int64)
+    kept = rng.permutation(len(p)).astype(np.int64)
+    out, out_tri, out_kept = stitch(p, tri, inner, kept, nodes, sub_p, sub_tri, sub_kept)
+    survive = np.ones(len(p), dtype=bool)
+    survive[nodes] = False
+    old = sub_kept >= 0
+    survive[nodes[sub_kept[old]]] = True
+    index = np.cumsum(survive) - 1
+    n_old = int(survive.sum())
+    to_global = np.empty(len(sub_p), dtype=np.intp)
+    to_global[old] = index[nodes[sub_kept[old]]]
+    to_global[~old] = n_old + np.arange(int((~old).sum()))
+    want = np.empty((n_old + int((~old).sum()), 2))
+    want[:n_old] = p[survive]
+    want[to_global] = sub_p
+    assert np.array_equal(out, want)
+    assert np.array_equal(out_tri, np.concatenate([index[tri[~inner]], to_global[sub_tri]]))
+    assert np.array_equal(out_kept, np.concatenate([kept[survive], np.full(int((~old).sum()), -1)]))

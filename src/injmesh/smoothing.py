@@ -1272,56 +1272,35 @@ def _repair(
     Returns the points, triangles and ``kept`` map, and the total iterations and
     triangulations spent.
     """
-    from .kernels.smooth import rings
+    from .kernels.repair import stitch, sub_mesh_of
 
     tri = relax.final()
     p = relax.p
-    q = triangle_quality(p, tri)
-    bad = q < REPAIR_Q
-    if not bad.any():
-        return p, tri, kept, relax.iterations, relax.retriangulations
-    # relax.final() left the CSR adjacency of ``tri`` (the last connectivity update).
+    # relax.final() left the CSR adjacency of ``tri`` (the last connectivity update).  The
+    # sub-mesh is cut in one compiled call (kernels.repair.sub_mesh_of).
     indptr, adj = relax._csr[0], relax._csr[1]
-    seeds = np.unique(tri[bad]).astype(np.int64)
-    movable = rings(indptr, adj, seeds, REPAIR_REACH)
-    span = rings(indptr, adj, seeds, REPAIR_REACH + REPAIR_BAND)
-    inner = span[tri].all(axis=1)
-    nodes = np.unique(tri[inner])
-    free = nodes >= relax.n_fixed
-    stay = free & ~movable[nodes]
-    # Sub-mesh numbering: the mesh's fixed nodes, the band, then the nodes that may move.
-    nodes = np.concatenate([nodes[~free], nodes[stay], nodes[free & ~stay]])
-    n_boundary = int(np.count_nonzero(~free))
-    n_fixed = n_boundary + int(np.count_nonzero(stay))
-    inv, slide, walls, project = _restricted(relax, nodes, movable)
-    segments = walls
-    if curves is not None and len(curves):
-        inner_curves = inv[curves]
-        segments = np.concatenate([walls, inner_curves[(inner_curves >= 0).all(axis=1)]])
-    outer_q = float(q[~inner].min()) if (~inner).any() else np.inf
+    tri = np.ascontiguousarray(tri, dtype=np.int64)
+    no_pairs = np.zeros((0, 2), dtype=np.int64)
+    nodes, n_boundary, n_fixed, inner, t32, nbr, slide, walls, inner_curves, outer_q = sub_mesh_of(
+        p, tri, indptr, adj, float(REPAIR_Q), REPAIR_REACH, REPAIR_BAND, relax.n_fixed,
+        np.ascontiguousarray(relax.slide, dtype=np.int64), np.ascontiguousarray(relax.walls, dtype=np.int64),
+        no_pairs if curves is None else np.ascontiguousarray(curves, dtype=np.int64))
+    if len(nodes) == 0:
+        return p, relax.tri, kept, relax.iterations, relax.retriangulations
+    segments = np.concatenate([walls, inner_curves]) if len(inner_curves) else walls
     sub = _Relaxation(relax.domain, relax.h, p[nodes], n_fixed, slide, walls, relax.callback,
-                      relax.cap, tri=inv[tri[inner]], project=project, patch=True, total=relax.total)
+                      relax.cap, tri=t32, project=_Renumbered(relax.project, nodes), patch=True,
+                      total=relax.total, nbr=nbr)
     sub.iterations = relax.iterations
     sp, stri, skept, iterations, triangulations = _repair_rounds(
-        sub, np.arange(len(nodes)), n_boundary, segments, outer_q)
+        sub, np.arange(len(nodes)), n_boundary, segments, float(outer_q))
     triangulations += relax.retriangulations - 1  # the sub-mesh's own set-up is not one
     if sp is sub.p and stri is sub.tri:
-        return p, tri, kept, iterations, triangulations
+        return p, relax.tri, kept, iterations, triangulations
     # Stitch: old nodes that survive keep their order, the rounds' new nodes come last.
-    survive = np.ones(len(p), dtype=bool)
-    survive[nodes] = False
-    old = skept >= 0
-    survive[nodes[skept[old]]] = True
-    index = np.cumsum(survive) - 1
-    n_old = int(survive.sum())
-    to_global = np.empty(len(sp), dtype=np.intp)
-    to_global[old] = index[nodes[skept[old]]]
-    to_global[~old] = n_old + np.arange(int((~old).sum()))
-    out = np.empty((n_old + int((~old).sum()), 2))
-    out[:n_old] = p[survive]
-    out[to_global] = sp
-    out_tri = np.concatenate([index[tri[~inner]], to_global[stri]])
-    out_kept = np.concatenate([kept[survive], np.full(int((~old).sum()), -1)])
+    out, out_tri, out_kept = stitch(p, tri, inner, np.ascontiguousarray(kept, dtype=np.int64), nodes,
+                                    sp, np.ascontiguousarray(stri, dtype=np.int64),
+                                    np.ascontiguousarray(skept, dtype=np.int64))
     return out, out_tri, out_kept, iterations, triangulations
 
 
@@ -1465,27 +1444,11 @@ def _repair_rounds(
 
 
 def _topology(tri: IntArray) -> bytes:
-    """The triangles ``tri`` as a set (each sorted, then the rows), as bytes to compare."""
-    t = np.sort(tri, axis=1)
-    return bytes(t[np.lexsort(t.T[::-1])].astype(np.int64).tobytes())
+    """The triangles ``tri`` as a set (each sorted, then the rows: ``kernels.repair.
+    canonical``), as bytes to compare."""
+    from .kernels.repair import canonical
 
-
-def _restricted(
-    relax: _Relaxation, nodes: IntArray, moving: NDArray[np.bool_]
-) -> tuple[IntArray, IntArray, IntArray, NodeProjector]:
-    """What a sub-mesh on ``nodes`` (its numbering: ``nodes[k]`` is its node k) needs of
-    ``relax``: the map from the mesh's numbering (-1 outside), the sliding rows of the nodes
-    that may move (``moving``, a mask over the mesh as it is now, which repair edits may have
-    grown or shrunk since ``relax``), the boundary segments inside, and the
-    projection of its sliding nodes onto their own curves."""
-    inv = np.full(len(moving), -1, dtype=np.intp)
-    inv[nodes] = np.arange(len(nodes))
-    slide = inv[relax.slide[moving[relax.slide[:, 0]]]]
-    slide = slide[(slide >= 0).all(axis=1)]
-    walls = inv[relax.walls]
-    walls = walls[(walls >= 0).all(axis=1)]
-
-    return inv, slide, walls, _Renumbered(relax.project, nodes)
+    return bytes(canonical(np.ascontiguousarray(tri, dtype=np.int64)).tobytes())
 
 
 class _PatchInverted(Exception):
@@ -1509,13 +1472,12 @@ def _patch(
     local = _patch_local(relax, p, tri, touched, iterations, ring, steps)
     if local is None:
         return _patch_whole(relax, p, tri, touched, iterations, ring, steps)
+    from .kernels.repair import patch_merge
+
     state, nodes, rows = local
-    in_patch = np.zeros(len(tri), dtype=bool)
-    in_patch[rows] = True
-    out = p.copy()
-    out[nodes] = state.p
-    return (out, np.concatenate([tri[~in_patch], nodes[state.tri]]), state.iterations - iterations,
-            state.retriangulations)
+    out, out_tri = patch_merge(p, np.ascontiguousarray(tri, dtype=np.int64), rows, nodes, state.p,
+                               np.ascontiguousarray(state.tri, dtype=np.int64))
+    return out, out_tri, state.iterations - iterations, state.retriangulations
 
 
 def _patch_whole(

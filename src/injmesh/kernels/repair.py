@@ -432,3 +432,237 @@ def patch_of(tri, n, indptr, adj, touched, ring, slide, walls, n_fixed):  # type
             wl[kw, 0], wl[kw, 1] = i0, i1
             kw += 1
     return rows, nodes, t32, nbr, moving, sl[:ks].copy(), wl[:kw].copy(), local_fixed
+
+
+#: :func:`canonical`'s key base: rows of node numbers below it make one int64 key.
+_BASE = 1 << 21
+
+
+@njit(cache=True)
+def canonical(tri):  # type: ignore[no-untyped-def]
+    """The triangles ``tri`` as a set: each row sorted, then the rows in lexicographic order,
+    ``(m, 3)`` int64.  Two rounds have the same triangles when these are equal."""
+    m = tri.shape[0]
+    s = np.empty((m, 3), dtype=np.int64)
+    top = 0
+    for r in range(m):
+        a, b, c = tri[r, 0], tri[r, 1], tri[r, 2]
+        if a > b:
+            a, b = b, a
+        if b > c:
+            b, c = c, b
+        if a > b:
+            a, b = b, a
+        s[r, 0], s[r, 1], s[r, 2] = a, b, c
+        top = max(top, c)
+    if top < _BASE:
+        # Node numbers of 21 bits: one key per row, in the rows' lexicographic order.
+        key = np.empty(m, dtype=np.int64)
+        for r in range(m):
+            key[r] = (s[r, 0] * _BASE + s[r, 1]) * _BASE + s[r, 2]
+        order = np.argsort(key)
+    else:
+        # Stable sorts by the third, second, then first node.
+        order = np.arange(m)
+        for k in range(2, -1, -1):
+            col = np.empty(m, dtype=np.int64)
+            for r in range(m):
+                col[r] = s[order[r], k]
+            order = order[np.argsort(col, kind="mergesort")]
+    out = np.empty((m, 3), dtype=np.int64)
+    for r in range(m):
+        out[r, 0], out[r, 1], out[r, 2] = s[order[r], 0], s[order[r], 1], s[order[r], 2]
+    return out
+
+
+
+@njit(cache=True)
+def patch_merge(p, tri, rows, nodes, patch_p, patch_tri):  # type: ignore[no-untyped-def]
+    """A relaxed patch written back (``smoothing._patch``): the points with the patch's
+    ``nodes`` at ``patch_p``, and the triangles outside the patch's ``rows`` (in order) then the
+    patch's ``patch_tri`` in the mesh's numbering.  Returns ``(p, tri)``."""
+    out = p.copy()
+    for a in range(nodes.shape[0]):
+        out[nodes[a], 0], out[nodes[a], 1] = patch_p[a, 0], patch_p[a, 1]
+    m = tri.shape[0]
+    inside = np.zeros(m, dtype=np.bool_)
+    for a in range(rows.shape[0]):
+        inside[rows[a]] = True
+    t = np.empty((m - rows.shape[0] + patch_tri.shape[0], 3), dtype=np.int64)
+    c = 0
+    for r in range(m):
+        if not inside[r]:
+            t[c, 0], t[c, 1], t[c, 2] = tri[r, 0], tri[r, 1], tri[r, 2]
+            c += 1
+    for r in range(patch_tri.shape[0]):
+        for k in range(3):
+            t[c, k] = nodes[patch_tri[r, k]]
+        c += 1
+    return out, t
+
+
+@njit(cache=True)
+def sub_mesh_of(p, tri, indptr, adj, repair_q, reach, band, n_fixed, slide, walls, curves):  # type: ignore[no-untyped-def]
+    """The repair's sub-mesh (``smoothing._repair``) around the triangles of quality below
+    ``repair_q`` (Eq. 5.1): its free nodes within ``reach`` edges of their nodes may move, the
+    ones within ``reach + band`` stay, and it holds the triangles whose three nodes are within
+    ``reach + band``.  ``indptr, adj``: the node lists of ``tri`` (free slots allowed).
+
+    Its nodes are numbered: the mesh's fixed nodes (``< n_fixed``), the band's, then the
+    movable free nodes, each group in increasing order.  Returns ``(nodes, n_boundary,
+    n_fixed, inner, t32, nbr, slide, walls, curves, outer_q)``: the nodes (empty when no
+    triangle is bad), how many are the mesh's fixed nodes and how many are fixed here, which
+    rows of ``tri`` it holds, its triangles in its numbering ordered by their least node (ties
+    in row order) as int32 and their neighbour table, the sliding rows of movable nodes and
+    the segments and ``curves`` whose nodes it holds (renumbered), and the least quality of
+    the triangles outside it (``inf`` when none)."""
+    n = p.shape[0]
+    m = tri.shape[0]
+    q = triangle_quality(p, tri)
+    mark = np.zeros(n, dtype=np.bool_)
+    n_seeds = 0
+    for t in range(m):
+        if q[t] < repair_q:
+            for k in range(3):
+                if not mark[tri[t, k]]:
+                    mark[tri[t, k]] = True
+                    n_seeds += 1
+    seeds = np.empty(n_seeds, dtype=np.int64)
+    s = 0
+    for v in range(n):
+        if mark[v]:
+            seeds[s] = v
+            s += 1
+    inner = np.zeros(m, dtype=np.bool_)
+    if n_seeds == 0:
+        empty2 = np.zeros((0, 2), dtype=np.int64)
+        return (np.zeros(0, dtype=np.int64), 0, 0, inner, np.zeros((0, 3), dtype=np.int32),
+                np.zeros((0, 3), dtype=np.int32), np.zeros((0, 3), dtype=np.int64), empty2, empty2,
+                np.inf)
+    movable = rings(indptr, adj, seeds, reach)
+    span = rings(indptr, adj, seeds, reach + band)
+    used = np.zeros(n, dtype=np.bool_)
+    outer_q = np.inf
+    c = 0
+    for t in range(m):
+        if span[tri[t, 0]] and span[tri[t, 1]] and span[tri[t, 2]]:
+            inner[t] = True
+            c += 1
+            for k in range(3):
+                used[tri[t, k]] = True
+        else:
+            outer_q = min(outer_q, q[t])
+    inv = np.full(n, -1, dtype=np.int64)
+    nn = 0
+    for group in range(3):
+        for v in range(n):
+            if not used[v]:
+                continue
+            g = 0 if v < n_fixed else (1 if not movable[v] else 2)
+            if g == group:
+                inv[v] = nn
+                nn += 1
+    nodes = np.empty(nn, dtype=np.int64)
+    n_boundary = 0
+    n_stay = 0
+    for v in range(n):
+        if inv[v] >= 0:
+            nodes[inv[v]] = v
+            if v < n_fixed:
+                n_boundary += 1
+            elif not movable[v]:
+                n_stay += 1
+    local = np.empty((c, 3), dtype=np.int64)
+    a = 0
+    for t in range(m):
+        if inner[t]:
+            for k in range(3):
+                local[a, k] = inv[tri[t, k]]
+            a += 1
+    order = by_least_vertex(local, nn)
+    t32 = np.empty((c, 3), dtype=np.int32)
+    for a in range(c):
+        for k in range(3):
+            t32[a, k] = local[order[a], k]
+    nbr = neighbours(t32, nn).astype(np.int32)
+    ks = 0
+    sl = np.empty(slide.shape, dtype=np.int64)
+    for r in range(slide.shape[0]):
+        if not movable[slide[r, 0]]:
+            continue
+        i0, i1, i2 = inv[slide[r, 0]], inv[slide[r, 1]], inv[slide[r, 2]]
+        if i0 >= 0 and i1 >= 0 and i2 >= 0:
+            sl[ks, 0], sl[ks, 1], sl[ks, 2] = i0, i1, i2
+            ks += 1
+    return (nodes, n_boundary, n_boundary + n_stay, inner, t32, nbr, sl[:ks].copy(),
+            _pairs_inside(walls, inv), _pairs_inside(curves, inv), outer_q)
+
+
+@njit(cache=True)
+def _pairs_inside(pairs, inv):  # type: ignore[no-untyped-def]
+    """The rows of ``pairs (k, 2)`` whose two nodes have a number in ``inv``, renumbered."""
+    out = np.empty(pairs.shape, dtype=np.int64)
+    c = 0
+    for r in range(pairs.shape[0]):
+        i0, i1 = inv[pairs[r, 0]], inv[pairs[r, 1]]
+        if i0 >= 0 and i1 >= 0:
+            out[c, 0], out[c, 1] = i0, i1
+            c += 1
+    return out[:c].copy()
+
+
+@njit(cache=True)
+def stitch(p, tri, inner, kept, nodes, sub_p, sub_tri, sub_kept):  # type: ignore[no-untyped-def]
+    """The repaired sub-mesh put back into the mesh (``smoothing._repair``): the nodes outside
+    it and those of it that survive (``sub_kept >= 0``: its node numbers) keep their order,
+    the new ones come last in theirs; the triangles outside it (rows not ``inner``) in order,
+    then its triangles.  Returns ``(p, tri, kept)``, ``kept`` -1 for the new nodes."""
+    n = p.shape[0]
+    survive = np.ones(n, dtype=np.bool_)
+    for a in range(nodes.shape[0]):
+        survive[nodes[a]] = False
+    n_new = 0
+    for i in range(sub_kept.shape[0]):
+        if sub_kept[i] >= 0:
+            survive[nodes[sub_kept[i]]] = True
+        else:
+            n_new += 1
+    index = np.empty(n, dtype=np.int64)
+    n_old = 0
+    for v in range(n):
+        index[v] = n_old if survive[v] else n_old - 1
+        if survive[v]:
+            n_old += 1
+    out = np.empty((n_old + n_new, 2))
+    out_kept = np.empty(n_old + n_new, dtype=np.int64)
+    for v in range(n):
+        if survive[v]:
+            out[index[v], 0], out[index[v], 1] = p[v, 0], p[v, 1]
+            out_kept[index[v]] = kept[v]
+    to_global = np.empty(sub_kept.shape[0], dtype=np.int64)
+    w = n_old
+    for i in range(sub_kept.shape[0]):
+        if sub_kept[i] >= 0:
+            to_global[i] = index[nodes[sub_kept[i]]]
+        else:
+            to_global[i] = w
+            out_kept[w] = -1
+            w += 1
+        out[to_global[i], 0], out[to_global[i], 1] = sub_p[i, 0], sub_p[i, 1]
+    m = tri.shape[0]
+    n_outer = 0
+    for t in range(m):
+        if not inner[t]:
+            n_outer += 1
+    out_tri = np.empty((n_outer + sub_tri.shape[0], 3), dtype=np.int64)
+    c = 0
+    for t in range(m):
+        if not inner[t]:
+            for k in range(3):
+                out_tri[c, k] = index[tri[t, k]]
+            c += 1
+    for r in range(sub_tri.shape[0]):
+        for k in range(3):
+            out_tri[c, k] = to_global[sub_tri[r, k]]
+        c += 1
+    return out, out_tri, out_kept
