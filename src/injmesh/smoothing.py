@@ -310,6 +310,9 @@ class SmoothResult:
     interface_group: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
 
 
+#: ``active`` of a relaxation whose free nodes all move (``kernels.smooth.moving_nodes``).
+_NO_FLAGS = np.zeros(0, dtype=np.bool_)
+
 #: ``project(points (m, 2), nodes (m,))``: each point onto the curve its node slides on.
 NodeProjector = Callable[[FloatArray, IntArray], FloatArray]
 
@@ -528,22 +531,19 @@ class _Relaxation:
         #: still moving.
         self.unsettled: tuple[float, float] | None = None
         n = len(p)
-        free = np.arange(n_fixed, n)
-        moving_slide = slide
-        if active is not None:
-            free = free[active[n_fixed:]]
-            moving_slide = slide[active[slide[:, 0]]]
-        self._free = free.astype(np.intp)
+        # The free nodes that may move, the sliding rows of those that may, all of them, and
+        # the free nodes' mask, in one call (a repair patch is made every round).
+        self._free, self._sl, self._moving, self._is_free = kernels.moving_nodes(
+            n, n_fixed, _NO_FLAGS if active is None else np.ascontiguousarray(active, dtype=np.bool_),
+            np.ascontiguousarray(slide, dtype=np.int64).reshape(-1, 3))
         #: The nodes that may move (None: all of them); the others never leave their place.
         self._active = active
-        self._sl = moving_slide
         #: The sliding rows' boundaries and the boundaries as the kernels query them, when
         #: the projector can tell (every boundary has a kernel form): then ``run`` steps in
         #: compiled calls (``kernels.smooth.run_steps``).
         compiled = getattr(self.project, "compiled", None)
         if compiled is not None:
-            self._kernel_boundary = compiled(domain, np.asarray(moving_slide[:, 0], dtype=np.intp))
-        self._moving = np.concatenate([self._free, moving_slide[:, 0]]).astype(np.intp)
+            self._kernel_boundary = compiled(domain, self._sl[:, 0])
         #: A zeroed scratch mask over the nodes (``_refresh``).
         self._mark = np.zeros(n, dtype=np.uint8)
         #: Nodes of the whole mesh (this may be a sub-mesh of it), and the weight of a step.
@@ -555,8 +555,6 @@ class _Relaxation:
         self._csr: tuple[NDArray[np.int64], NDArray[np.int32], NDArray[np.int64], FloatArray]
         self._bars: NDArray[np.int64]
         self._near = np.empty(len(self._free), dtype=np.intp)
-        self._is_free = np.zeros(n, dtype=bool)
-        self._is_free[self._free] = True
         self._seen = np.zeros(0, dtype=np.bool_)
         #: d at each free node's anchor, or an upper bound of it for deep nodes (0 elsewhere).
         self._d0 = np.zeros(0)
@@ -581,8 +579,7 @@ class _Relaxation:
         self._t32 = t32
         self._nbr = _neighbours32(t32, len(self.p)) if nbr is None else nbr
         self._con = np.zeros(t32.shape, dtype=np.uint8)
-        self._vt = np.full(len(self.p), -1, dtype=np.int32)
-        self._vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
+        self._vt = self._k.vertex_rows(t32, len(self.p))
         self._connect()
 
     def _connect(self, rebuild: bool = True) -> None:
@@ -665,8 +662,8 @@ class _Relaxation:
 
     def _connect_compiled(self) -> None:
         """``_connect(rebuild=True)`` in two compiled calls around h (``kernels.smooth.
-        connect_bars`` and ``connect_rest``), the depth asked of the compiled boundary: the
-        same numbers."""
+        connect_bars`` and ``connect_sizes``: hbar, then ``connect_rest``), the depth asked of
+        the compiled boundary: the same numbers."""
         k, p = self._k, self.p
         constant = getattr(self.h, "constant", None)
         sl = np.ascontiguousarray(self._sl, dtype=np.int64)
@@ -679,19 +676,24 @@ class _Relaxation:
             values = np.asarray(self.h(mid), dtype=np.float64)
             ld = np.ascontiguousarray(values[:len(bars)])
             ld_slide = values[len(bars):]
-        hbar = k.mean_bar_size(indptr, eid, ld)
-        lonely = np.flatnonzero(hbar == 0)  # as in _connect
-        if len(lonely):
-            hbar[lonely] = self.h(p[lonely])
         self._csr = (indptr, adj, eid, ld)
-        self.hbar = hbar
         self._slide_lengths(ld_slide)
         self._depth_arrays()
         assert self._kernel_boundary is not None
         exact = bool(getattr(self.domain, "exact_distance", False))
-        self._damp = k.connect_rest(p, self._moving, self._free.astype(np.int64), indptr, adj, eid,
-                                    ld, hbar, DT, STABLE_GAIN, self.anchor, self._d0, self._deep,
-                                    DEEP, exact, *self._kernel_boundary[1])
+        boundary = self._kernel_boundary[1]
+        # hbar, then the rest; a node in no triangle has no bars: its own h, as in _connect.
+        hbar, damp, done = k.connect_sizes(p, self._moving, self._free, indptr, adj, eid, ld, DT,
+                                           STABLE_GAIN, self.anchor, self._d0, self._deep, DEEP,
+                                           exact, *boundary)
+        if not done:
+            lonely = np.flatnonzero(hbar == 0)
+            hbar[lonely] = self.h(p[lonely])
+            damp = k.connect_rest(p, self._moving, self._free, indptr, adj, eid, ld, hbar, DT,
+                                  STABLE_GAIN, self.anchor, self._d0, self._deep, DEEP, exact,
+                                  *boundary)
+        self.hbar = hbar
+        self._damp = damp
         self.retriangulations += 1
 
     def _inside_depth(self, free: IntArray) -> None:
