@@ -850,10 +850,9 @@ def test_compiled_steps_make_the_mesh_of_the_python_loop(name: str, monkeypatch:
 
 @pytest.mark.parametrize("seed", range(4))
 def test_relaxation_set_up_kernels_equal_the_numpy_lines(seed: int) -> None:
-    """``moving_nodes``, ``vertex_rows`` and ``connect_sizes`` (a relaxation's set-up in fewer
-    calls) against the NumPy lines and the separate kernels they replace."""
-    from injmesh.kernels.smooth import connect_rest, connect_sizes, moving_nodes, vertex_rows
-    from injmesh.smoothing import DEEP, DT, STABLE_GAIN, _OnDomain
+    """``moving_nodes`` and ``vertex_rows`` (a relaxation's set-up in fewer calls) against the
+    NumPy lines they replace."""
+    from injmesh.kernels.smooth import moving_nodes, vertex_rows
 
     rng = np.random.default_rng(seed)
     p, t32 = _mesh(seed, 80)
@@ -875,30 +874,3 @@ def test_relaxation_set_up_kernels_equal_the_numpy_lines(seed: int) -> None:
     vt = np.full(n + 1, -1, dtype=np.int32)  # the last node is in no triangle
     vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
     assert np.array_equal(vertex_rows(t32, n + 1), vt)
-
-    domain = Circle((0.5, 0.5), 0.8)
-    kb = _OnDomain(domain).compiled(domain, np.zeros(0, dtype=np.intp))
-    assert kb is not None
-    indptr, adj, eid, bars = adjacency(n, t32, 3)
-    ld = rng.uniform(0.05, 0.1, len(bars))
-    free = np.arange(n_fixed, n, dtype=np.int64)
-    moving = free.copy()
-
-    def fresh():  # type: ignore[no-untyped-def]
-        return np.full_like(p, np.nan), np.zeros(n), np.zeros(n, dtype=np.bool_)
-
-    a1, d1, f1 = fresh()
-    hbar, damp, done = connect_sizes(p, moving, free, indptr, adj, eid, ld, DT, STABLE_GAIN, a1, d1,
-                                     f1, DEEP, True, *kb[1])
-    a2, d2, f2 = fresh()
-    ref_hbar = mean_bar_size(indptr, eid, ld)
-    ref_damp = connect_rest(p, moving, free, indptr, adj, eid, ld, ref_hbar, DT, STABLE_GAIN, a2, d2,
-                            f2, DEEP, True, *kb[1])
-    assert done
-    for got, want in ((hbar, ref_hbar), (damp, ref_damp), (a1, a2), (d1, d2), (f1, f2)):
-        assert np.array_equal(got, want)
-    # A node in no triangle: only hbar, for the caller's h.
-    indptr, adj, eid, bars = adjacency(n + 1, t32, 3)
-    hbar, _, done = connect_sizes(np.concatenate([p, [[0.5, 0.5]]]), moving, free, indptr, adj, eid,
-                                  ld, DT, STABLE_GAIN, *fresh(), DEEP, True, *kb[1])
-    assert not done and hbar[n] == 0

@@ -121,6 +121,21 @@ Other choices the paper leaves open:
   one inclusion, 17-29 % (A/B in one run, with the patch set-up and quality-pass sweeps
   compiled too).
 
+  The repair rounds' bookkeeping is compiled too (:mod:`injmesh.kernels.repair`, one call
+  per step, the numbers of the NumPy lines they replaced): a round's quality, chords, parts'
+  minima and bad triangles (``round_state``), its edits' choice around the one call of h
+  (``edge_midpoints``, ``choose_edits``), the collapse and split renumbering
+  (``apply_edits``), the flips after them (``flip_near``), its patch's cut and write-back
+  (``patch_of``, ``patch_merge``), and the sub-mesh's cut and stitch (``sub_mesh_of``,
+  ``stitch``); a relaxation's set-up is ``moving_nodes``, then ``connect_bars`` and
+  ``connect_rest`` around h.  On the paper's small cases a round's sub-mesh has a few
+  hundred triangles, and its few hundred NumPy calls of 1-5 us cost more than the work: the
+  rounds took 11.7 / 9.9 / 6.0 ms per mesh on the unit disc / square with a hole / two
+  circles and a square, 7.0 / 5.6 / 2.9 ms now (A/B in one run, best of 7 over three
+  alternations; the whole mesh 27.8 / 29.9 / 28.5 -> 22.2 / 24.6 / 24.7 ms on a loaded
+  machine).  What remains of a round is mostly its patch's spring runs (``run_steps``,
+  ``relink``, ``resize``) and the calls of h between them.
+
   Measured with ``benchmarks/scale.py`` (CPU seconds of the smoothing stage, 2 cores under
   heavy load): 1e3 nodes 0.15 -> 0.04, 1e4 2.44 -> 0.28, 1e5 17.8 -> 1.7, together with the
   local repair, the candidate-only quality pass and ``DPTOL`` below; at 1e5 a step's two
@@ -662,8 +677,8 @@ class _Relaxation:
 
     def _connect_compiled(self) -> None:
         """``_connect(rebuild=True)`` in two compiled calls around h (``kernels.smooth.
-        connect_bars`` and ``connect_sizes``: hbar, then ``connect_rest``), the depth asked of
-        the compiled boundary: the same numbers."""
+        connect_bars`` and ``connect_rest``), the depth asked of the compiled boundary: the
+        same numbers."""
         k, p = self._k, self.p
         constant = getattr(self.h, "constant", None)
         sl = np.ascontiguousarray(self._sl, dtype=np.int64)
@@ -676,24 +691,19 @@ class _Relaxation:
             values = np.asarray(self.h(mid), dtype=np.float64)
             ld = np.ascontiguousarray(values[:len(bars)])
             ld_slide = values[len(bars):]
+        hbar = k.mean_bar_size(indptr, eid, ld)
+        lonely = np.flatnonzero(hbar == 0)  # as in _connect
+        if len(lonely):
+            hbar[lonely] = self.h(p[lonely])
         self._csr = (indptr, adj, eid, ld)
+        self.hbar = hbar
         self._slide_lengths(ld_slide)
         self._depth_arrays()
         assert self._kernel_boundary is not None
         exact = bool(getattr(self.domain, "exact_distance", False))
-        boundary = self._kernel_boundary[1]
-        # hbar, then the rest; a node in no triangle has no bars: its own h, as in _connect.
-        hbar, damp, done = k.connect_sizes(p, self._moving, self._free, indptr, adj, eid, ld, DT,
-                                           STABLE_GAIN, self.anchor, self._d0, self._deep, DEEP,
-                                           exact, *boundary)
-        if not done:
-            lonely = np.flatnonzero(hbar == 0)
-            hbar[lonely] = self.h(p[lonely])
-            damp = k.connect_rest(p, self._moving, self._free, indptr, adj, eid, ld, hbar, DT,
-                                  STABLE_GAIN, self.anchor, self._d0, self._deep, DEEP, exact,
-                                  *boundary)
-        self.hbar = hbar
-        self._damp = damp
+        self._damp = k.connect_rest(p, self._moving, self._free, indptr, adj, eid, ld, hbar, DT,
+                                    STABLE_GAIN, self.anchor, self._d0, self._deep, DEEP, exact,
+                                    *self._kernel_boundary[1])
         self.retriangulations += 1
 
     def _inside_depth(self, free: IntArray) -> None:

@@ -167,7 +167,8 @@ def choose_edits(p, tri, bad, chord, h_mid, n_fixed):  # type: ignore[no-untyped
     below 1 than the longest is above, the first of equal ratios) is collapsed or split, its
     chord split if it has one; a collapse keeps a fixed node and drops the free one; an edge
     between two fixed nodes is left alone but for a chord.  An operation is dropped unless it
-    is the first, in this order, to use each of its two nodes, and the first with its edge.
+    is the first, in this order, to use each of its two nodes (so an edge chosen by both its
+    triangles is taken once).
 
     Returns ``(collapse (c, 2), split (s, 2))`` int64, collapse rows ``(keep, drop)``."""
     nb = bad.shape[0]
@@ -202,21 +203,13 @@ def choose_edits(p, tri, bad, chord, h_mid, n_fixed):  # type: ignore[no-untyped
     for i in range(c - 1, -1, -1):
         first[ea[i]] = i
         first[eb[i]] = i
-    # The same edge chosen twice: the first one (it already fails the node test above, as
-    # its nodes were used before, but the rule is the edge's).
-    key = np.empty(c, dtype=np.int64)
-    for i in range(c):
-        key[i] = min(ea[i], eb[i]) * n + max(ea[i], eb[i])
-    order = np.argsort(key, kind="mergesort")
-    once = np.zeros(c, dtype=np.bool_)
-    for s in range(c):
-        if s == 0 or key[order[s]] != key[order[s - 1]]:
-            once[order[s]] = True
+    # The same edge chosen twice (by its two triangles) is taken once, the first time: the
+    # node test already drops the later one, whose nodes the first one used.
     n_col = 0
     n_split = 0
     ok = np.empty(c, dtype=np.bool_)
     for i in range(c):
-        ok[i] = first[ea[i]] == i and first[eb[i]] == i and once[i]
+        ok[i] = first[ea[i]] == i and first[eb[i]] == i
         if ok[i]:
             if col[i]:
                 n_col += 1
@@ -377,7 +370,8 @@ def patch_of(tri, n, indptr, adj, touched, ring, slide, walls, n_fixed):  # type
     move, the sliding rows ``slide (k, 3)`` of moving nodes and the segments ``walls`` whose
     nodes are all in it (renumbered), and how many of its nodes come before ``n_fixed``."""
     if indptr.shape[0] == 0:
-        indptr, adj, _, _ = adjacency(n, tri, 0)
+        # int32 triangles, as a relaxation's node lists are made (one compiled adjacency).
+        indptr, adj, _, _ = adjacency(n, tri.astype(np.int32), 0)
     active = rings(indptr, adj, touched, ring)
     near = rings(indptr, adj, touched, ring + 1)
     m = tri.shape[0]
@@ -434,8 +428,9 @@ def patch_of(tri, n, indptr, adj, touched, ring, slide, walls, n_fixed):  # type
     return rows, nodes, t32, nbr, moving, sl[:ks].copy(), wl[:kw].copy(), local_fixed
 
 
-#: :func:`canonical`'s key base: rows of node numbers below it make one int64 key.
-_BASE = 1 << 21
+#: :func:`canonical`'s key of a row's first two nodes, ``first * _KEY_BASE + second`` (node
+#: numbers fit in 31 bits, as ``smoothing._KEY`` assumes).
+_KEY_BASE = 1 << 31
 
 
 @njit(cache=True)
@@ -444,7 +439,7 @@ def canonical(tri):  # type: ignore[no-untyped-def]
     ``(m, 3)`` int64.  Two rounds have the same triangles when these are equal."""
     m = tri.shape[0]
     s = np.empty((m, 3), dtype=np.int64)
-    top = 0
+    key = np.empty(m, dtype=np.int64)
     for r in range(m):
         a, b, c = tri[r, 0], tri[r, 1], tri[r, 2]
         if a > b:
@@ -454,26 +449,20 @@ def canonical(tri):  # type: ignore[no-untyped-def]
         if a > b:
             a, b = b, a
         s[r, 0], s[r, 1], s[r, 2] = a, b, c
-        top = max(top, c)
-    if top < _BASE:
-        # Node numbers of 21 bits: one key per row, in the rows' lexicographic order.
-        key = np.empty(m, dtype=np.int64)
-        for r in range(m):
-            key[r] = (s[r, 0] * _BASE + s[r, 1]) * _BASE + s[r, 2]
-        order = np.argsort(key)
-    else:
-        # Stable sorts by the third, second, then first node.
-        order = np.arange(m)
-        for k in range(2, -1, -1):
-            col = np.empty(m, dtype=np.int64)
-            for r in range(m):
-                col[r] = s[order[r], k]
-            order = order[np.argsort(col, kind="mergesort")]
+        key[r] = a * _KEY_BASE + b
+    order = np.argsort(key)
+    # Rows with the same first two nodes (two at most in a triangulation) by their third.
+    for r in range(1, m):
+        x = order[r]
+        u = r - 1
+        while u >= 0 and key[order[u]] == key[x] and s[order[u], 2] > s[x, 2]:
+            order[u + 1] = order[u]
+            u -= 1
+        order[u + 1] = x
     out = np.empty((m, 3), dtype=np.int64)
     for r in range(m):
         out[r, 0], out[r, 1], out[r, 2] = s[order[r], 0], s[order[r], 1], s[order[r], 2]
     return out
-
 
 
 @njit(cache=True)

@@ -1452,21 +1452,6 @@ def vertex_rows(t32, n):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def connect_sizes(p, moving, free, indptr, adj, eid, ld, dt, gain, anchor, d0, deep_flags,  # type: ignore[no-untyped-def]
-                  deep, exact, kinds, shapes, origins, cat, offs):
-    """:func:`mean_bar_size` then :func:`connect_rest` in one call, when no node is in no
-    triangle.  Returns ``(hbar, damp, done)``; with a node without bars (hbar 0) nothing
-    but hbar is made (``done`` False): its h must come from the caller first."""
-    hbar = mean_bar_size(indptr, eid, ld)
-    for i in range(hbar.shape[0]):
-        if hbar[i] == 0:
-            return hbar, np.empty(0), False
-    damp = connect_rest(p, moving, free, indptr, adj, eid, ld, hbar, dt, gain, anchor, d0,
-                        deep_flags, deep, exact, kinds, shapes, origins, cat, offs)
-    return hbar, damp, True
-
-
-@njit(cache=True)
 def _renew_depth(p, anchor, d0, hbar, free, deep, exact, deep_flags, kinds, shapes, origins, cat,  # type: ignore[no-untyped-def]
                  offs):
     """``smoothing._Relaxation._inside_depth`` of the free nodes ``free``: :func:`depth_bounds`
