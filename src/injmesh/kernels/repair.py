@@ -370,8 +370,10 @@ def patch_of(tri, n, indptr, adj, touched, ring, slide, walls, n_fixed):  # type
     move, the sliding rows ``slide (k, 3)`` of moving nodes and the segments ``walls`` whose
     nodes are all in it (renumbered), and how many of its nodes come before ``n_fixed``."""
     if indptr.shape[0] == 0:
-        # int32 triangles, as a relaxation's node lists are made (one compiled adjacency).
-        indptr, adj, _, _ = adjacency(n, tri.astype(np.int32), 0)
+        # int32 triangles and no free slots, given as the empty indptr's length, not as a
+        # literal 0: the specialisation the relaxations compile (a literal argument makes
+        # numba compile a callee once more for that constant).
+        indptr, adj, _, _ = adjacency(n, tri.astype(np.int32), indptr.shape[0])
     active = rings(indptr, adj, touched, ring)
     near = rings(indptr, adj, touched, ring + 1)
     m = tri.shape[0]
@@ -403,12 +405,12 @@ def patch_of(tri, n, indptr, adj, touched, ring, slide, walls, n_fixed):  # type
     for a in range(c):
         for k in range(3):
             local[a, k] = inv[tri[rows[a], k]]
-    order = by_least_vertex(local, nn)
+    order = by_least_vertex(local, nodes.shape[0])
     t32 = np.empty((c, 3), dtype=np.int32)
     for a in range(c):
         for k in range(3):
             t32[a, k] = local[order[a], k]
-    nbr = neighbours(t32, nn).astype(np.int32)
+    nbr = neighbours(t32, nodes.shape[0]).astype(np.int32)
     ks = 0
     sl = np.empty(slide.shape, dtype=np.int64)
     for r in range(slide.shape[0]):
@@ -428,18 +430,15 @@ def patch_of(tri, n, indptr, adj, touched, ring, slide, walls, n_fixed):  # type
     return rows, nodes, t32, nbr, moving, sl[:ks].copy(), wl[:kw].copy(), local_fixed
 
 
-#: :func:`canonical`'s key of a row's first two nodes, ``first * _KEY_BASE + second`` (node
-#: numbers fit in 31 bits, as ``smoothing._KEY`` assumes).
-_KEY_BASE = 1 << 31
-
-
 @njit(cache=True)
 def canonical(tri):  # type: ignore[no-untyped-def]
     """The triangles ``tri`` as a set: each row sorted, then the rows in lexicographic order,
-    ``(m, 3)`` int64.  Two rounds have the same triangles when these are equal."""
+    ``(m, 3)`` int64.  Two rounds have the same triangles when these are equal.  The rows are
+    counted out by their first node, then put in order by the other two within each node's
+    few (no general sort: it would compile for seconds)."""
     m = tri.shape[0]
     s = np.empty((m, 3), dtype=np.int64)
-    key = np.empty(m, dtype=np.int64)
+    n = 0
     for r in range(m):
         a, b, c = tri[r, 0], tri[r, 1], tri[r, 2]
         if a > b:
@@ -449,19 +448,23 @@ def canonical(tri):  # type: ignore[no-untyped-def]
         if a > b:
             a, b = b, a
         s[r, 0], s[r, 1], s[r, 2] = a, b, c
-        key[r] = a * _KEY_BASE + b
-    order = np.argsort(key)
-    # Rows with the same first two nodes (two at most in a triangulation) by their third.
-    for r in range(1, m):
-        x = order[r]
-        u = r - 1
-        while u >= 0 and key[order[u]] == key[x] and s[order[u], 2] > s[x, 2]:
-            order[u + 1] = order[u]
-            u -= 1
-        order[u + 1] = x
-    out = np.empty((m, 3), dtype=np.int64)
+        n = max(n, c + 1)
+    start = np.zeros(n + 1, dtype=np.int64)
     for r in range(m):
-        out[r, 0], out[r, 1], out[r, 2] = s[order[r], 0], s[order[r], 1], s[order[r], 2]
+        start[s[r, 0] + 1] += 1
+    for v in range(n):
+        start[v + 1] += start[v]
+    out = np.empty((m, 3), dtype=np.int64)
+    fill = start[:n].copy()
+    for r in range(m):
+        at = fill[s[r, 0]]
+        fill[s[r, 0]] += 1
+        # Insertion within the first node's rows, by the second then the third node.
+        while at > start[s[r, 0]] and (out[at - 1, 1] > s[r, 1] or (out[at - 1, 1] == s[r, 1]
+                                                                    and out[at - 1, 2] > s[r, 2])):
+            out[at, 0], out[at, 1], out[at, 2] = out[at - 1, 0], out[at - 1, 1], out[at - 1, 2]
+            at -= 1
+        out[at, 0], out[at, 1], out[at, 2] = s[r, 0], s[r, 1], s[r, 2]
     return out
 
 
@@ -568,12 +571,12 @@ def sub_mesh_of(p, tri, indptr, adj, repair_q, reach, band, n_fixed, slide, wall
             for k in range(3):
                 local[a, k] = inv[tri[t, k]]
             a += 1
-    order = by_least_vertex(local, nn)
+    order = by_least_vertex(local, nodes.shape[0])
     t32 = np.empty((c, 3), dtype=np.int32)
     for a in range(c):
         for k in range(3):
             t32[a, k] = local[order[a], k]
-    nbr = neighbours(t32, nn).astype(np.int32)
+    nbr = neighbours(t32, nodes.shape[0]).astype(np.int32)
     ks = 0
     sl = np.empty(slide.shape, dtype=np.int64)
     for r in range(slide.shape[0]):
