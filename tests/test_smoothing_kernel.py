@@ -207,26 +207,27 @@ def test_depth_flags_from_the_lipschitz_bound_equal_the_exact_ones() -> None:
 def test_repair_edits_keep_a_valid_triangulation() -> None:
     """Split an edge and collapse another on the triangle arrays, then Lawson flips: a valid
     Delaunay triangulation of the new nodes, same area, every node used."""
+    from injmesh.kernels.repair import apply_edits
     from injmesh.quality import signed_areas
-    from injmesh.smoothing import _edited, _made_delaunay
+    from injmesh.smoothing import _made_delaunay
 
     square = Rectangle((0, 0), (1, 1))
     rng = np.random.default_rng(5)
     corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
     p = np.concatenate([corners, 0.1 + 0.8 * rng.random((40, 2))])
-    tri = delaunay(p)
-    edges = unique_edges(tri)
+    tri = delaunay(p).astype(np.int64)
+    edges = unique_edges(tri).astype(np.int64)
     interior = edges[(edges >= 4).all(axis=1)]
     split = interior[:1]
     # A collapse whose two nodes share no node with the split.
     rest = interior[~np.isin(interior, split).any(axis=1)]
     collapse = rest[:1]
-    alive = np.ones(len(p), dtype=bool)
-    alive[collapse[:, 1]] = False
-    q = p.copy()
-    q[collapse[0, 0]] = 0.5 * (p[collapse[0, 0]] + p[collapse[0, 1]])
-    q = np.concatenate([q[alive], 0.5 * (p[split[:, 0]] + p[split[:, 1]])])
-    t = _made_delaunay(square, q, _edited(tri, alive, collapse, split), np.zeros((0, 2), np.intp))
+    kept = np.arange(len(p), dtype=np.int64)
+    q, edited, new_kept, _, touched = apply_edits(p, tri, kept, np.zeros(len(p), dtype=np.int64),
+                                                  collapse, split, 4)
+    assert len(q) == len(p) and (new_kept == -1).sum() == 1
+    assert np.allclose(q[-1], 0.5 * (p[split[0, 0]] + p[split[0, 1]]))
+    t = _made_delaunay(square, q, edited, np.zeros((0, 2), np.intp))
     assert signed_areas(q, t).min() > 0
     assert np.array_equal(np.unique(t), np.arange(len(q)))
     assert signed_areas(q, t).sum() == pytest.approx(1.0, rel=1e-12)
@@ -845,3 +846,31 @@ def test_compiled_steps_make_the_mesh_of_the_python_loop(name: str, monkeypatch:
     assert np.array_equal(compiled.triangles, loop.triangles)
     if kw:
         assert np.array_equal(compiled.triangle_tags, loop.triangle_tags)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_relaxation_set_up_kernels_equal_the_numpy_lines(seed: int) -> None:
+    """``moving_nodes`` and ``vertex_rows`` (a relaxation's set-up in fewer calls) against the
+    NumPy lines they replace."""
+    from injmesh.kernels.smooth import moving_nodes, vertex_rows
+
+    rng = np.random.default_rng(seed)
+    p, t32 = _mesh(seed, 80)
+    n, n_fixed = len(p), 10
+    b = np.arange(n_fixed, dtype=np.int64)
+    slide = np.stack([b, np.roll(b, 1), np.roll(b, -1)], axis=1)
+    for active in (np.zeros(0, dtype=np.bool_), rng.random(n) < 0.5):
+        free, sl, moving, is_free = moving_nodes(n, n_fixed, active, slide)
+        ref_free = np.arange(n_fixed, n)
+        ref_sl = slide
+        if len(active):
+            ref_free = ref_free[active[n_fixed:]]
+            ref_sl = slide[active[slide[:, 0]]]
+        ref_is_free = np.zeros(n, dtype=bool)
+        ref_is_free[ref_free] = True
+        assert np.array_equal(free, ref_free) and np.array_equal(sl, ref_sl)
+        assert np.array_equal(moving, np.concatenate([ref_free, ref_sl[:, 0]]))
+        assert np.array_equal(is_free, ref_is_free)
+    vt = np.full(n + 1, -1, dtype=np.int32)  # the last node is in no triangle
+    vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
+    assert np.array_equal(vertex_rows(t32, n + 1), vt)

@@ -121,6 +121,21 @@ Other choices the paper leaves open:
   one inclusion, 17-29 % (A/B in one run, with the patch set-up and quality-pass sweeps
   compiled too).
 
+  The repair rounds' bookkeeping is compiled too (:mod:`injmesh.kernels.repair`, one call
+  per step, the numbers of the NumPy lines they replaced): a round's quality, chords, parts'
+  minima and bad triangles (``round_state``), its edits' choice around the one call of h
+  (``edge_midpoints``, ``choose_edits``), the collapse and split renumbering
+  (``apply_edits``), the flips after them (``flip_near``), its patch's cut and write-back
+  (``patch_of``, ``patch_merge``), and the sub-mesh's cut and stitch (``sub_mesh_of``,
+  ``stitch``); a relaxation's set-up is ``moving_nodes``, then ``connect_bars`` and
+  ``connect_rest`` around h.  On the paper's small cases a round's sub-mesh has a few
+  hundred triangles, and its few hundred NumPy calls of 1-5 us cost more than the work: the
+  rounds took 11.7 / 9.9 / 6.0 ms per mesh on the unit disc / square with a hole / two
+  circles and a square, 7.0 / 5.6 / 2.9 ms now (A/B in one run, best of 7 over three
+  alternations; the whole mesh 27.8 / 29.9 / 28.5 -> 22.2 / 24.6 / 24.7 ms on a loaded
+  machine).  What remains of a round is mostly its patch's spring runs (``run_steps``,
+  ``relink``, ``resize``) and the calls of h between them.
+
   Measured with ``benchmarks/scale.py`` (CPU seconds of the smoothing stage, 2 cores under
   heavy load): 1e3 nodes 0.15 -> 0.04, 1e4 2.44 -> 0.28, 1e5 17.8 -> 1.7, together with the
   local repair, the candidate-only quality pass and ``DPTOL`` below; at 1e5 a step's two
@@ -310,6 +325,9 @@ class SmoothResult:
     interface_group: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
 
 
+#: ``active`` of a relaxation whose free nodes all move (``kernels.smooth.moving_nodes``).
+_NO_FLAGS = np.zeros(0, dtype=np.bool_)
+
 #: ``project(points (m, 2), nodes (m,))``: each point onto the curve its node slides on.
 NodeProjector = Callable[[FloatArray, IntArray], FloatArray]
 
@@ -482,7 +500,9 @@ class _Relaxation:
     """Euler steps of the truss model for one set of nodes.
 
     ``active`` (optional, a boolean mask over the nodes) restricts the moving nodes to a subset:
-    the repair relaxes only the rings around the nodes it changed.
+    the repair relaxes only the rings around the nodes it changed.  ``nbr`` (optional, with
+    ``tri``): the neighbour table (int32) of ``tri``, whose rows are then ordered by their
+    least node already (``kernels.repair.patch_of`` makes both for a repair patch).
     """
 
     def __init__(
@@ -500,6 +520,7 @@ class _Relaxation:
         project: NodeProjector | None = None,
         patch: bool = False,
         total: int | None = None,
+        nbr: Int32Array | None = None,
     ) -> None:
         from .kernels import smooth as kernels
 
@@ -525,22 +546,19 @@ class _Relaxation:
         #: still moving.
         self.unsettled: tuple[float, float] | None = None
         n = len(p)
-        free = np.arange(n_fixed, n)
-        moving_slide = slide
-        if active is not None:
-            free = free[active[n_fixed:]]
-            moving_slide = slide[active[slide[:, 0]]]
-        self._free = free.astype(np.intp)
+        # The free nodes that may move, the sliding rows of those that may, all of them, and
+        # the free nodes' mask, in one call (a repair patch is made every round).
+        self._free, self._sl, self._moving, self._is_free = kernels.moving_nodes(
+            n, n_fixed, _NO_FLAGS if active is None else np.ascontiguousarray(active, dtype=np.bool_),
+            np.ascontiguousarray(slide, dtype=np.int64).reshape(-1, 3))
         #: The nodes that may move (None: all of them); the others never leave their place.
         self._active = active
-        self._sl = moving_slide
         #: The sliding rows' boundaries and the boundaries as the kernels query them, when
         #: the projector can tell (every boundary has a kernel form): then ``run`` steps in
         #: compiled calls (``kernels.smooth.run_steps``).
         compiled = getattr(self.project, "compiled", None)
         if compiled is not None:
-            self._kernel_boundary = compiled(domain, np.asarray(moving_slide[:, 0], dtype=np.intp))
-        self._moving = np.concatenate([self._free, moving_slide[:, 0]]).astype(np.intp)
+            self._kernel_boundary = compiled(domain, self._sl[:, 0])
         #: A zeroed scratch mask over the nodes (``_refresh``).
         self._mark = np.zeros(n, dtype=np.uint8)
         #: Nodes of the whole mesh (this may be a sub-mesh of it), and the weight of a step.
@@ -552,14 +570,12 @@ class _Relaxation:
         self._csr: tuple[NDArray[np.int64], NDArray[np.int32], NDArray[np.int64], FloatArray]
         self._bars: NDArray[np.int64]
         self._near = np.empty(len(self._free), dtype=np.intp)
-        self._is_free = np.zeros(n, dtype=bool)
-        self._is_free[self._free] = True
         self._seen = np.zeros(0, dtype=np.bool_)
         #: d at each free node's anchor, or an upper bound of it for deep nodes (0 elsewhere).
         self._d0 = np.zeros(0)
         #: The fraction of its depth a node may move and be inside without asking the domain.
         self._reach = _inside_reach(domain)
-        self._set_triangles(*(_triangulated(domain, p, walls) if tri is None else (tri, None)))
+        self._set_triangles(*(_triangulated(domain, p, walls) if tri is None else (tri, nbr)))
 
     def _projector(self, nodes: IntArray) -> Callable[[FloatArray], FloatArray]:
         """Projection of the points of ``nodes`` onto their own curves (Eq. 3.2)."""
@@ -578,8 +594,7 @@ class _Relaxation:
         self._t32 = t32
         self._nbr = _neighbours32(t32, len(self.p)) if nbr is None else nbr
         self._con = np.zeros(t32.shape, dtype=np.uint8)
-        self._vt = np.full(len(self.p), -1, dtype=np.int32)
-        self._vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
+        self._vt = self._k.vertex_rows(t32, len(self.p))
         self._connect()
 
     def _connect(self, rebuild: bool = True) -> None:
@@ -686,9 +701,9 @@ class _Relaxation:
         self._depth_arrays()
         assert self._kernel_boundary is not None
         exact = bool(getattr(self.domain, "exact_distance", False))
-        self._damp = k.connect_rest(p, self._moving, self._free.astype(np.int64), indptr, adj, eid,
-                                    ld, hbar, DT, STABLE_GAIN, self.anchor, self._d0, self._deep,
-                                    DEEP, exact, *self._kernel_boundary[1])
+        self._damp = k.connect_rest(p, self._moving, self._free, indptr, adj, eid, ld, hbar, DT,
+                                    STABLE_GAIN, self.anchor, self._d0, self._deep, DEEP, exact,
+                                    *self._kernel_boundary[1])
         self.retriangulations += 1
 
     def _inside_depth(self, free: IntArray) -> None:
@@ -1269,56 +1284,35 @@ def _repair(
     Returns the points, triangles and ``kept`` map, and the total iterations and
     triangulations spent.
     """
-    from .kernels.smooth import rings
+    from .kernels.repair import stitch, sub_mesh_of
 
     tri = relax.final()
     p = relax.p
-    q = triangle_quality(p, tri)
-    bad = q < REPAIR_Q
-    if not bad.any():
-        return p, tri, kept, relax.iterations, relax.retriangulations
-    # relax.final() left the CSR adjacency of ``tri`` (the last connectivity update).
+    # relax.final() left the CSR adjacency of ``tri`` (the last connectivity update).  The
+    # sub-mesh is cut in one compiled call (kernels.repair.sub_mesh_of).
     indptr, adj = relax._csr[0], relax._csr[1]
-    seeds = np.unique(tri[bad]).astype(np.int64)
-    movable = rings(indptr, adj, seeds, REPAIR_REACH)
-    span = rings(indptr, adj, seeds, REPAIR_REACH + REPAIR_BAND)
-    inner = span[tri].all(axis=1)
-    nodes = np.unique(tri[inner])
-    free = nodes >= relax.n_fixed
-    stay = free & ~movable[nodes]
-    # Sub-mesh numbering: the mesh's fixed nodes, the band, then the nodes that may move.
-    nodes = np.concatenate([nodes[~free], nodes[stay], nodes[free & ~stay]])
-    n_boundary = int(np.count_nonzero(~free))
-    n_fixed = n_boundary + int(np.count_nonzero(stay))
-    inv, slide, walls, project = _restricted(relax, nodes, movable)
-    segments = walls
-    if curves is not None and len(curves):
-        inner_curves = inv[curves]
-        segments = np.concatenate([walls, inner_curves[(inner_curves >= 0).all(axis=1)]])
-    outer_q = float(q[~inner].min()) if (~inner).any() else np.inf
+    tri = np.ascontiguousarray(tri, dtype=np.int64)
+    no_pairs = np.zeros((0, 2), dtype=np.int64)
+    nodes, n_boundary, n_fixed, inner, t32, nbr, slide, walls, inner_curves, outer_q = sub_mesh_of(
+        p, tri, indptr, adj, float(REPAIR_Q), REPAIR_REACH, REPAIR_BAND, relax.n_fixed,
+        np.ascontiguousarray(relax.slide, dtype=np.int64), np.ascontiguousarray(relax.walls, dtype=np.int64),
+        no_pairs if curves is None else np.ascontiguousarray(curves, dtype=np.int64))
+    if len(nodes) == 0:
+        return p, relax.tri, kept, relax.iterations, relax.retriangulations
+    segments = np.concatenate([walls, inner_curves]) if len(inner_curves) else walls
     sub = _Relaxation(relax.domain, relax.h, p[nodes], n_fixed, slide, walls, relax.callback,
-                      relax.cap, tri=inv[tri[inner]], project=project, patch=True, total=relax.total)
+                      relax.cap, tri=t32, project=_Renumbered(relax.project, nodes), patch=True,
+                      total=relax.total, nbr=nbr)
     sub.iterations = relax.iterations
     sp, stri, skept, iterations, triangulations = _repair_rounds(
-        sub, np.arange(len(nodes)), n_boundary, segments, outer_q)
+        sub, np.arange(len(nodes)), n_boundary, segments, float(outer_q))
     triangulations += relax.retriangulations - 1  # the sub-mesh's own set-up is not one
     if sp is sub.p and stri is sub.tri:
-        return p, tri, kept, iterations, triangulations
+        return p, relax.tri, kept, iterations, triangulations
     # Stitch: old nodes that survive keep their order, the rounds' new nodes come last.
-    survive = np.ones(len(p), dtype=bool)
-    survive[nodes] = False
-    old = skept >= 0
-    survive[nodes[skept[old]]] = True
-    index = np.cumsum(survive) - 1
-    n_old = int(survive.sum())
-    to_global = np.empty(len(sp), dtype=np.intp)
-    to_global[old] = index[nodes[skept[old]]]
-    to_global[~old] = n_old + np.arange(int((~old).sum()))
-    out = np.empty((n_old + int((~old).sum()), 2))
-    out[:n_old] = p[survive]
-    out[to_global] = sp
-    out_tri = np.concatenate([index[tri[~inner]], to_global[stri]])
-    out_kept = np.concatenate([kept[survive], np.full(int((~old).sum()), -1)])
+    out, out_tri, out_kept = stitch(p, tri, inner, np.ascontiguousarray(kept, dtype=np.int64), nodes,
+                                    sp, np.ascontiguousarray(stri, dtype=np.int64),
+                                    np.ascontiguousarray(skept, dtype=np.int64))
     return out, out_tri, out_kept, iterations, triangulations
 
 
@@ -1356,85 +1350,64 @@ def _repair_rounds(
     undo) ends the rounds, and so does a round that comes back to an earlier one (no better,
     the same triangles, the nodes within ``REPAIR_SAME * h``): the rounds are cycling.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    from .kernels.repair import apply_edits, components, round_state
 
     tri = relax.final()
     p, cur_kept = relax.p, kept
-    q = triangle_quality(p, tri)
     iterations, triangulations = relax.iterations, relax.retriangulations
     if len(tri) == 0:
         return p, tri, kept, iterations, triangulations
-    edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
-    n_parts, label = connected_components(
-        coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(p), len(p))),
-        directed=False)
-    label = np.asarray(label, dtype=np.intp)
-
-    def part_min(q: FloatArray, tri: IntArray, label: IntArray) -> FloatArray:
-        out = np.full(n_parts, np.inf)
-        np.minimum.at(out, label[tri[:, 0]], q)
-        return out
-
+    # The bookkeeping of a round is compiled (kernels.repair): on a small case a round's sub-mesh
+    # has a few hundred triangles, and its NumPy lines cost more than the work.
+    label, n_parts = components(np.ascontiguousarray(tri, dtype=np.int64), len(p))
     seg_keys = _keys(segments)
+    n_fixed = relax.n_fixed
 
-    def repairable(p: FloatArray, tri: IntArray) -> tuple[NDArray[np.bool_], IntArray]:
-        """Which triangles a round can change (a free node, or a chord), and each one's chord
-        to split (-1: none)."""
-        chord = _chords(p, tri, n_boundary, seg_keys)
-        return (tri.max(axis=1) >= relax.n_fixed) | (chord >= 0), chord
+    def state(p: FloatArray, tri: NDArray[np.int64], pinned: NDArray[np.bool_]) -> tuple[Any, ...]:
+        """q, chords, part scores and the bad triangles of a round (``round_state``)."""
+        return round_state(p, tri, n_boundary, n_fixed, seg_keys, _KEY, label, n_parts, pinned,
+                           float(REPAIR_Q))
 
+    tri = np.ascontiguousarray(tri, dtype=np.int64)
     rounds: list[tuple[FloatArray, IntArray, IntArray, IntArray]] = [(p, tri, cur_kept, label)]
-    changeable, chord = repairable(p, tri)
-    best = part_min(q, tri, label)
+    _, chord, _, best, best_changeable, bad = state(p, tri, np.zeros(n_parts, dtype=np.bool_))
     # A part whose worst triangle is frozen (three fixed nodes and no chord: a sharp tip),
     # worse than every triangle a round can change, keeps that q_min whatever a round does,
     # so no round could be kept for it: its bad triangles are left alone.  (The
     # 20,000-vertex outline is one such part: its rounds cost 2.6 s and were all thrown away.)
     # Rounds are scored on every triangle: flips after an edit can make new frozen ones.
-    pinned = best < part_min(q[changeable], tri[changeable], label)
+    pinned = best < best_changeable
+    bad = bad[~pinned[label[tri[bad, 0]]]]
     best_round = np.zeros(n_parts, dtype=np.intp)
     last: FloatArray | None = None
     stalled = 0
     seen = {_topology(tri): p}
     for _ in range(REPAIR_ROUNDS):
-        bad = np.flatnonzero((q < REPAIR_Q) & changeable)
-        bad = bad[~pinned[label[tri[bad, 0]]]]
         if len(bad) == 0:
             break
-        ops = _choose_repairs(relax, p, tri, bad[np.argsort(q[bad], kind="stable")], chord)
+        ops = _choose_repairs(relax, p, tri, bad, chord)
         if ops is None:
             break
         collapse, split = ops
-        alive = np.ones(len(p), dtype=bool)
-        p = p.copy()
-        # Collapse (a, b): b disappears; a moves to the midpoint unless it is fixed.
-        mid = collapse[collapse[:, 0] >= relax.n_fixed]
-        p[mid[:, 0]] = 0.5 * (p[mid[:, 0]] + p[mid[:, 1]])
-        alive[collapse[:, 1]] = False
-        new = 0.5 * (p[split[:, 0]] + p[split[:, 1]])
-        index = np.cumsum(alive) - 1
-        p = np.concatenate([p[alive], new])
-        cur_kept = np.concatenate([cur_kept[alive], np.full(len(new), -1)])
-        label = np.concatenate([label[alive], label[split[:, 0]]])  # a split node joins its edge's part
-        # Only the nodes near the change move: the k-ring of the nodes the operations touched
-        # (in the new numbering; the dropped node's neighbours are the keeper's now).
-        touched = np.concatenate([index[collapse[:, 0]], index[split.ravel()],
-                                  alive.sum() + np.arange(len(new))])
+        # Collapse (a, b): b disappears; a moves to the midpoint unless it is fixed.  A split
+        # node joins its edge's part.  Only the nodes near the change move: the k-ring of the
+        # nodes the operations touched (in the new numbering; the dropped node's neighbours
+        # are the keeper's now).
+        p, tri, cur_kept, label, touched = apply_edits(
+            p, tri, cur_kept, label, np.ascontiguousarray(collapse, dtype=np.int64),
+            np.ascontiguousarray(split, dtype=np.int64), n_fixed)
         try:
-            tri = _edited(tri, alive, collapse, split)
             tri = _made_delaunay(relax.domain, p, tri, relax.walls, relax._patch, near=touched)
-            p, tri, steps, extra = _patch(relax, p, tri, touched.astype(np.int64), iterations)
+            p, tri, steps, extra = _patch(relax, p, tri, touched, iterations)
         except _PatchInverted:
             break
+        tri = np.ascontiguousarray(tri, dtype=np.int64)
         iterations += steps
         triangulations += extra
         # Fixed nodes come first and are never dropped: the segments keep their numbers.
-        q = triangle_quality(p, tri)
-        changeable, chord = repairable(p, tri)
+        _, chord, _, score, _, bad = state(p, tri, pinned)
         # Later rounds work on copies: every round's arrays stay as they are.
         rounds.append((p, tri, cur_kept, label))
-        score = part_min(q, tri, label)
         better = score > best
         best[better] = score[better]
         best_round[better] = len(rounds) - 1
@@ -1483,27 +1456,11 @@ def _repair_rounds(
 
 
 def _topology(tri: IntArray) -> bytes:
-    """The triangles ``tri`` as a set (each sorted, then the rows), as bytes to compare."""
-    t = np.sort(tri, axis=1)
-    return bytes(t[np.lexsort(t.T[::-1])].astype(np.int64).tobytes())
+    """The triangles ``tri`` as a set (each sorted, then the rows: ``kernels.repair.
+    canonical``), as bytes to compare."""
+    from .kernels.repair import canonical
 
-
-def _restricted(
-    relax: _Relaxation, nodes: IntArray, moving: NDArray[np.bool_]
-) -> tuple[IntArray, IntArray, IntArray, NodeProjector]:
-    """What a sub-mesh on ``nodes`` (its numbering: ``nodes[k]`` is its node k) needs of
-    ``relax``: the map from the mesh's numbering (-1 outside), the sliding rows of the nodes
-    that may move (``moving``, a mask over the mesh as it is now, which repair edits may have
-    grown or shrunk since ``relax``), the boundary segments inside, and the
-    projection of its sliding nodes onto their own curves."""
-    inv = np.full(len(moving), -1, dtype=np.intp)
-    inv[nodes] = np.arange(len(nodes))
-    slide = inv[relax.slide[moving[relax.slide[:, 0]]]]
-    slide = slide[(slide >= 0).all(axis=1)]
-    walls = inv[relax.walls]
-    walls = walls[(walls >= 0).all(axis=1)]
-
-    return inv, slide, walls, _Renumbered(relax.project, nodes)
+    return bytes(canonical(np.ascontiguousarray(tri, dtype=np.int64)).tobytes())
 
 
 class _PatchInverted(Exception):
@@ -1527,13 +1484,12 @@ def _patch(
     local = _patch_local(relax, p, tri, touched, iterations, ring, steps)
     if local is None:
         return _patch_whole(relax, p, tri, touched, iterations, ring, steps)
+    from .kernels.repair import patch_merge
+
     state, nodes, rows = local
-    in_patch = np.zeros(len(tri), dtype=bool)
-    in_patch[rows] = True
-    out = p.copy()
-    out[nodes] = state.p
-    return (out, np.concatenate([tri[~in_patch], nodes[state.tri]]), state.iterations - iterations,
-            state.retriangulations)
+    out, out_tri = patch_merge(p, np.ascontiguousarray(tri, dtype=np.int64), rows, nodes, state.p,
+                               np.ascontiguousarray(state.tri, dtype=np.int64))
+    return out, out_tri, state.iterations - iterations, state.retriangulations
 
 
 def _patch_whole(
@@ -1562,62 +1518,25 @@ def _patch_local(
     """The sub-mesh relaxation of :func:`_patch`: its state (numbered as ``nodes``, the mesh's
     nodes it holds) and the rows of ``tri`` it replaces, or None when a flip met an inverted
     triangle.  Flips keep the number of triangles, so ``state.tri`` has as many as ``rows``.
-    ``csr``: the node lists ``(indptr, adj)`` of ``tri`` when the caller has them."""
-    from .kernels.smooth import adjacency, rings
+    ``csr``: the node lists ``(indptr, adj)`` of ``tri`` when the caller has them.  The patch
+    is cut in one compiled call (``kernels.repair.patch_of``)."""
+    from .kernels.repair import patch_of
 
-    if csr is None:
-        indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32), 0)
-    else:
-        indptr, adj = csr
-    active = rings(indptr, adj, touched, ring)
-    near = rings(indptr, adj, touched, ring + 1)
-    in_patch = near[tri].any(axis=1)
-    nodes = np.unique(tri[in_patch])  # sorted: fixed and sliding nodes (< n_fixed) come first
-    inv, slide, walls, project = _restricted(relax, nodes, active)
-    n_fixed = int(np.searchsorted(nodes, relax.n_fixed))
+    indptr, adj = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int32)) if csr is None else csr
+    rows, nodes, t32, nbr, active, slide, walls, n_fixed = patch_of(
+        np.ascontiguousarray(tri, dtype=np.int64), len(p), indptr, adj,
+        np.ascontiguousarray(touched, dtype=np.int64), ring,
+        np.ascontiguousarray(relax.slide, dtype=np.int64),
+        np.ascontiguousarray(relax.walls, dtype=np.int64), relax.n_fixed)
     try:
         state = _Relaxation(relax.domain, relax.h, p[nodes], n_fixed, slide, walls, relax.callback,
-                            relax.cap, active=active[nodes], tri=inv[tri[in_patch]], project=project,
-                            patch=True, total=relax.total)
+                            relax.cap, active=active, tri=t32, project=_Renumbered(relax.project, nodes),
+                            patch=True, total=relax.total, nbr=nbr)
         state.iterations = iterations
         state.run("spring", steps)
     except _PatchInverted:
         return None
-    return state, nodes, np.flatnonzero(in_patch)
-
-
-def _edited(tri: IntArray, alive: NDArray[np.bool_], collapse: IntArray, split: IntArray) -> IntArray:
-    """The triangles after the repair's edge operations, in the new numbering.
-
-    A split edge a-b gets node ``n + k`` (k-th split) at its midpoint: each triangle (a, b, w)
-    on it becomes (a, m, w) and (m, b, w).  A collapse (keep, drop) renames drop to keep and
-    removes the triangles that had both.  Old nodes are then renumbered by ``alive`` and the
-    split nodes follow them.  The operations share no node, so no triangle has two split
-    edges; the result may have inverted triangles (see :func:`_made_delaunay`).
-    """
-    n = len(alive)
-    t = np.array(tri, dtype=np.intp, copy=True)
-    if len(split):
-        u = t.ravel()
-        v = t[:, [1, 2, 0]].ravel()
-        key = np.minimum(u, v).astype(np.int64) * n + np.maximum(u, v)
-        lo, hi = np.minimum(split[:, 0], split[:, 1]), np.maximum(split[:, 0], split[:, 1])
-        skey = lo.astype(np.int64) * n + hi
-        order = np.argsort(skey, kind="stable")
-        pos = np.minimum(np.searchsorted(skey[order], key), len(skey) - 1)
-        hit = np.flatnonzero(skey[order[pos]] == key)
-        rows, k = np.divmod(hit, 3)
-        m = n + order[pos[hit]]
-        a, b, w = u[hit], v[hit], t[rows, (k + 2) % 3]
-        t[rows] = np.stack([a, m, w], axis=1)
-        t = np.concatenate([t, np.stack([m, b, w], axis=1)])
-    if len(collapse):
-        rename = np.arange(n + len(split))
-        rename[collapse[:, 1]] = collapse[:, 0]
-        t = rename[t]
-        t = t[(t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 2] != t[:, 0])]
-    index = np.concatenate([np.cumsum(alive) - 1, int(alive.sum()) + np.arange(len(split))])
-    return np.asarray(index[t], dtype=np.intp)
+    return state, nodes, rows
 
 
 def _neighbours32(t32: NDArray[np.int32], n: int) -> NDArray[np.int32]:
@@ -1633,27 +1552,18 @@ def _made_delaunay(domain: Domain, p: FloatArray, tri: IntArray, walls: IntArray
     or the domain's triangulation from scratch when ``tri`` has an inverted or flat triangle
     (``_PatchInverted`` instead when ``tri`` is only part of the mesh: ``patch``).
 
-    With ``near`` (nodes), the flips start from the triangles of those nodes only: the rest
-    of ``tri`` was Delaunay and only they moved or were made (the repair's edits)."""
-    from .kernels.delaunay import flip_rows_to_delaunay, flip_to_delaunay
+    With ``near`` (nodes), the flips start from the triangles of those nodes only:
+    the rest of ``tri`` was Delaunay and only they moved or were made (the repair's edits).
+    The neighbour table and the flips are one compiled call (``kernels.repair.flip_near``)."""
+    from .kernels.repair import flip_near
 
-    t32 = np.ascontiguousarray(tri, dtype=np.int32)
-    nbr = _neighbours32(t32, len(p))
-    vt = np.full(len(p), -1, dtype=np.int32)
-    vt[t32.ravel()] = np.repeat(np.arange(len(t32), dtype=np.int32), 3)
-    con = np.zeros(t32.shape, dtype=np.uint8)
-    if near is None:
-        res = flip_to_delaunay(p, t32, nbr, con, vt) if len(t32) else -1
-    else:
-        mark = np.zeros(len(p), dtype=bool)
-        mark[near] = True
-        rows = np.flatnonzero(mark[t32].any(axis=1)).astype(np.int32)
-        res = flip_rows_to_delaunay(p, t32, nbr, con, vt, rows) if len(t32) else -1
+    start = np.zeros(0, dtype=np.int64) if near is None else np.asarray(near, dtype=np.int64)
+    res, t32 = flip_near(p, np.ascontiguousarray(tri, dtype=np.int64), start, near is None)
     if res < 0:
         if patch:
             raise _PatchInverted
         return triangulate(domain, p, walls)
-    return t32.astype(np.intp)
+    return np.asarray(t32, dtype=np.intp)
 
 
 def missing_walls(tri: IntArray, walls: IntArray) -> IntArray:
@@ -2080,82 +1990,37 @@ def _keys(edges: IntArray) -> NDArray[np.int64]:
 
 def _chords(p: FloatArray, tri: IntArray, n_boundary: int, seg_keys: NDArray[np.int64]) -> IntArray:
     """For each triangle of three boundary nodes (``< n_boundary``): the local index k of its
-    edge ``(t[k], t[k+1])`` to split, or -1.
+    edge ``(t[k], t[k+1])`` to split, or -1 (``kernels.repair.chords``).
 
     The edge must be the triangle's longest (a flat cap: splitting the longest edge is the
     classic cure of an obtuse triangle; at a sharp tip the chord is the shortest edge, and
-    splitting it would halve the tip) and not a boundary or curve segment.  The triangle
-    across it is split too, so it must have a free node.
+    splitting it would halve the tip) and not a boundary or curve segment (``seg_keys``,
+    :func:`_keys`).  The triangle across it is split too, so it must have a free node, which
+    can move to make room.  Across a strip one triangle wide (the two triangles of a quad of
+    boundary nodes, the chord their common diagonal) the new node has nowhere to go: next to
+    a 5-degree tip that made the strip's trapezoids q 0.73 where they were 0.80.
     """
-    out = np.full(len(tri), -1, dtype=np.intp)
-    cand = np.flatnonzero(tri.max(axis=1) < n_boundary)
-    if not len(cand):
-        return out
-    t = tri[cand]
-    b = t[:, [1, 2, 0]]
-    k = np.argmax(np.hypot(*(p[t] - p[b]).transpose(2, 0, 1)), axis=1)
-    rows = np.arange(len(t))
-    chord = ~np.isin(_edge_keys(t[rows, k], b[rows, k]), seg_keys)
-    cand, k = cand[chord], k[chord]
-    if not len(cand):
-        return out
-    # The triangle across each chord is split with it: it must have a free node, which can
-    # move to make room.  Across a strip one triangle wide (the two triangles of a quad of
-    # boundary nodes, the chord their common diagonal) the new node has nowhere to go: next to
-    # a 5-degree tip that made the strip's trapezoids q 0.73 where they were 0.80.  Edge k is
-    # opposite corner k + 2 in the neighbour table.
-    across = _neighbours32(np.ascontiguousarray(tri, dtype=np.int32), len(p))[cand, (k + 2) % 3]
-    walled_in = (across >= 0) & (tri[across].max(axis=1) < n_boundary)
-    out[cand[~walled_in]] = k[~walled_in]
-    return out
+    from .kernels.repair import chords
+
+    return np.asarray(chords(p, np.ascontiguousarray(tri, dtype=np.int64), n_boundary,
+                             np.ascontiguousarray(seg_keys, dtype=np.int64), _KEY), dtype=np.intp)
 
 
 def _choose_repairs(
     relax: _Relaxation, p: FloatArray, tri: IntArray, bad: IntArray, chord: IntArray
 ) -> tuple[IntArray, IntArray] | None:
-    """Edge operations for the bad triangles (worst first), no two touching the same node.
+    """Edge operations for the bad triangles (worst first), no two touching the same node
+    (``kernels.repair.choose_edits``: the edge of each furthest from h, collapsed or split).
 
     ``chord``: per triangle, the edge to split of a triangle with three fixed nodes
-    (:func:`_chords`)."""
-    t = tri[bad]
-    a = t
-    b = t[:, [1, 2, 0]]
-    ratio = np.hypot(*(p[a] - p[b]).transpose(2, 0, 1)) / relax.h(
-        (0.5 * (p[a] + p[b])).reshape(-1, 2)
-    ).reshape(a.shape)
-    short = np.argmin(ratio, axis=1)
-    long_ = np.argmax(ratio, axis=1)
-    rows = np.arange(len(t))
-    do_collapse = (1.0 - ratio[rows, short]) > (ratio[rows, long_] - 1.0)
-    # A triangle of fixed nodes only has its chord split (_chords), or nothing.
-    capped = chord[bad] >= 0
-    do_collapse &= ~capped
-    k = np.where(capped, chord[bad], np.where(do_collapse, short, long_))
-    ea, eb = a[rows, k], b[rows, k]
-    # Collapse (keep, drop): the dropped node must be free; a fixed keeper does not move.
-    swap = do_collapse & (eb < relax.n_fixed)
-    ea, eb = np.where(swap, eb, ea), np.where(swap, ea, eb)
-    # An edge between two fixed nodes is left alone (splitting it on the boundary would need a
-    # new boundary node), but for a chord of a cap.
-    movable = (eb >= relax.n_fixed) | (~do_collapse & (ea >= relax.n_fixed)) | capped
-    ea, eb, do_collapse = ea[movable], eb[movable], do_collapse[movable]
-    if len(ea) == 0:
+    (:func:`_chords`).  Returns ``(collapse, split)``, or None when there is none."""
+    from .kernels.repair import choose_edits, edge_midpoints
+
+    t = np.ascontiguousarray(tri, dtype=np.int64)
+    b = np.ascontiguousarray(bad, dtype=np.int64)
+    h_mid = np.asarray(relax.h(edge_midpoints(p, t, b)), dtype=np.float64)
+    collapse, split = choose_edits(p, t, b, np.ascontiguousarray(chord, dtype=np.int64),
+                                   np.ascontiguousarray(h_mid), relax.n_fixed)
+    if len(collapse) == 0 and len(split) == 0:
         return None
-    # Greedy in order of badness: an operation is dropped if an earlier one shares a node.
-    nodes = np.stack([ea, eb], axis=1)
-    first_use = np.full(len(p), len(nodes))
-    order = np.arange(len(nodes))
-    np.minimum.at(first_use, nodes[:, 0], order)
-    np.minimum.at(first_use, nodes[:, 1], order)
-    ok = (first_use[ea] == order) & (first_use[eb] == order)
-    # The same edge can be chosen by both its triangles: keep one.
-    key = np.minimum(ea, eb) * len(p) + np.maximum(ea, eb)
-    _, uniq = np.unique(key, return_index=True)
-    once = np.zeros(len(ea), dtype=bool)
-    once[uniq] = True
-    ok &= once
-    if not ok.any():
-        return None
-    collapse = np.stack([ea, eb], axis=1)[ok & do_collapse]
-    split = np.stack([ea, eb], axis=1)[ok & ~do_collapse]
     return collapse, split

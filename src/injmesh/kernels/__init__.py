@@ -12,6 +12,9 @@ its algorithm (no NumPy twin) and is deterministic: same inputs, bit-identical o
   tells inside from outside.
 * :mod:`injmesh.kernels.smooth` -- Step 3's Euler step in gather form over node neighbour lists
   (bar forces, hbar, the capped step), k-rings and edge look-ups for local repair.
+* :mod:`injmesh.kernels.repair` -- the repair rounds' bookkeeping: quality, chords and parts'
+  minima of a round, the choice and application of its collapses and splits, the flips after
+  them, and the cutting of a patch to relax.
 * :mod:`injmesh.kernels.brep`, :mod:`injmesh.kernels.fastmarch`, :mod:`injmesh.kernels.interp`
   -- B-rep distance and projection (BVH), fast marching for gradation, size-field interpolation.
 * :mod:`injmesh.kernels.inject` -- Advancing Node Injection: the proximity grid (nodes inserted

@@ -1406,6 +1406,52 @@ def connect_rest(p, moving, free, indptr, adj, eid, ld, hbar, dt, gain, anchor, 
 
 
 @njit(cache=True)
+def moving_nodes(n, n_fixed, active, slide):  # type: ignore[no-untyped-def]
+    """A relaxation's moving nodes (``smoothing._Relaxation``): the free nodes (``>= n_fixed``)
+    flagged in ``active`` (all of them when ``active`` is empty), the sliding rows ``slide``
+    whose node is flagged, the free nodes then those rows' nodes, and a mask of the free ones.
+    Returns ``(free, slide, moving, is_free)``."""
+    every = active.shape[0] == 0
+    nf = 0
+    for v in range(n_fixed, n):
+        if every or active[v]:
+            nf += 1
+    ns = 0
+    for r in range(slide.shape[0]):
+        if every or active[slide[r, 0]]:
+            ns += 1
+    free = np.empty(nf, dtype=np.int64)
+    is_free = np.zeros(n, dtype=np.bool_)
+    a = 0
+    for v in range(n_fixed, n):
+        if every or active[v]:
+            free[a] = v
+            is_free[v] = True
+            a += 1
+    sl = np.empty((ns, 3), dtype=np.int64)
+    moving = np.empty(nf + ns, dtype=np.int64)
+    moving[:nf] = free
+    a = 0
+    for r in range(slide.shape[0]):
+        if every or active[slide[r, 0]]:
+            sl[a, 0], sl[a, 1], sl[a, 2] = slide[r, 0], slide[r, 1], slide[r, 2]
+            moving[nf + a] = slide[r, 0]
+            a += 1
+    return free, sl, moving, is_free
+
+
+@njit(cache=True)
+def vertex_rows(t32, n):  # type: ignore[no-untyped-def]
+    """For each of ``n`` nodes, the last row of ``t32`` that holds it (-1: none), int32: the
+    flip kernels' vertex-to-triangle map."""
+    vt = np.full(n, -1, dtype=np.int32)
+    for r in range(t32.shape[0]):
+        for k in range(3):
+            vt[t32[r, k]] = r
+    return vt
+
+
+@njit(cache=True)
 def _renew_depth(p, anchor, d0, hbar, free, deep, exact, deep_flags, kinds, shapes, origins, cat,  # type: ignore[no-untyped-def]
                  offs):
     """``smoothing._Relaxation._inside_depth`` of the free nodes ``free``: :func:`depth_bounds`
