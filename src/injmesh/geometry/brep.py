@@ -436,13 +436,19 @@ class BRep(Domain):
         outside, the sliver's tip joins the domain.  The sides then meet it at corners of
         about 90 degrees.  Returns the new boundary and the number of cusps bridged.
         """
-        uniq, inv, count = np.unique(self._p0, axis=0, return_inverse=True, return_counts=True)
-        inv = inv.ravel()
+        if not width > 0:
+            return self, 0
         # A cusp the boundary passes once: an arc arriving tangent to the next piece and
         # turning back along it (a disc cutting a rectangle tangent to its side at a corner).
         back = np.flatnonzero(np.abs(self._turns()) > 180.0 - CUSP_TURN)
-        if not (width > 0 and (np.any(count > 1) or len(back))):
+        # A point passed twice, found by sorting (np.unique on rows cost 0.2 ms per mesh).
+        p0 = self._p0
+        o = np.lexsort((p0[:, 1], p0[:, 0]))
+        twice = len(p0) > 1 and bool(np.any(np.all(p0[o][1:] == p0[o][:-1], axis=1)))
+        if not (twice or len(back)):
             return self, 0
+        uniq, inv, count = np.unique(self._p0, axis=0, return_inverse=True, return_counts=True)
+        inv = inv.ravel()
         t_start, t_end = self._tangents(False), self._tangents(True)
         end_id = np.full(len(self._p1), -1)
         hit = {tuple(p): k for k, p in enumerate(uniq.tolist())}
