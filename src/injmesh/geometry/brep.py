@@ -443,8 +443,8 @@ class BRep(Domain):
         back = np.flatnonzero(np.abs(self._turns()) > 180.0 - CUSP_TURN)
         # A point passed twice, found by sorting (np.unique on rows cost 0.2 ms per mesh).
         p0 = self._p0
-        o = np.lexsort((p0[:, 1], p0[:, 0]))
-        twice = len(p0) > 1 and bool(np.any(np.all(p0[o][1:] == p0[o][:-1], axis=1)))
+        srt = p0[np.lexsort((p0[:, 1], p0[:, 0]))]
+        twice = len(p0) > 1 and bool(np.any(np.all(srt[1:] == srt[:-1], axis=1)))
         if not (twice or len(back)):
             return self, 0
         uniq, inv, count = np.unique(self._p0, axis=0, return_inverse=True, return_counts=True)

@@ -405,29 +405,33 @@ def patch_of(tri, n, indptr, adj, touched, ring, slide, walls, n_fixed):  # type
     for a in range(c):
         for k in range(3):
             local[a, k] = inv[tri[rows[a], k]]
-    order = by_least_vertex(local, nodes.shape[0])
+    t32, nbr, sl = _local_mesh(local, nodes.shape[0], slide, active, inv)
+    return rows, nodes, t32, nbr, moving, sl, _pairs_inside(walls, inv), local_fixed
+
+
+@njit(cache=True)
+def _local_mesh(local, n, slide, movable, inv):  # type: ignore[no-untyped-def]
+    """A sub-mesh's triangles ``local`` (renumbered) listed by their least node as int32, their
+    neighbour table, and the rows of ``slide`` whose node is ``movable`` and whose three nodes
+    have a number in ``inv``, renumbered: what :func:`patch_of` and :func:`sub_mesh_of` give
+    a relaxation."""
+    c = local.shape[0]
+    order = by_least_vertex(local, n)
     t32 = np.empty((c, 3), dtype=np.int32)
     for a in range(c):
         for k in range(3):
             t32[a, k] = local[order[a], k]
-    nbr = neighbours(t32, nodes.shape[0]).astype(np.int32)
+    nbr = neighbours(t32, n).astype(np.int32)
     ks = 0
     sl = np.empty(slide.shape, dtype=np.int64)
     for r in range(slide.shape[0]):
-        if not active[slide[r, 0]]:
+        if not movable[slide[r, 0]]:
             continue
         i0, i1, i2 = inv[slide[r, 0]], inv[slide[r, 1]], inv[slide[r, 2]]
         if i0 >= 0 and i1 >= 0 and i2 >= 0:
             sl[ks, 0], sl[ks, 1], sl[ks, 2] = i0, i1, i2
             ks += 1
-    kw = 0
-    wl = np.empty(walls.shape, dtype=np.int64)
-    for r in range(walls.shape[0]):
-        i0, i1 = inv[walls[r, 0]], inv[walls[r, 1]]
-        if i0 >= 0 and i1 >= 0:
-            wl[kw, 0], wl[kw, 1] = i0, i1
-            kw += 1
-    return rows, nodes, t32, nbr, moving, sl[:ks].copy(), wl[:kw].copy(), local_fixed
+    return t32, nbr, sl[:ks].copy()
 
 
 @njit(cache=True)
@@ -571,22 +575,8 @@ def sub_mesh_of(p, tri, indptr, adj, repair_q, reach, band, n_fixed, slide, wall
             for k in range(3):
                 local[a, k] = inv[tri[t, k]]
             a += 1
-    order = by_least_vertex(local, nodes.shape[0])
-    t32 = np.empty((c, 3), dtype=np.int32)
-    for a in range(c):
-        for k in range(3):
-            t32[a, k] = local[order[a], k]
-    nbr = neighbours(t32, nodes.shape[0]).astype(np.int32)
-    ks = 0
-    sl = np.empty(slide.shape, dtype=np.int64)
-    for r in range(slide.shape[0]):
-        if not movable[slide[r, 0]]:
-            continue
-        i0, i1, i2 = inv[slide[r, 0]], inv[slide[r, 1]], inv[slide[r, 2]]
-        if i0 >= 0 and i1 >= 0 and i2 >= 0:
-            sl[ks, 0], sl[ks, 1], sl[ks, 2] = i0, i1, i2
-            ks += 1
-    return (nodes, n_boundary, n_boundary + n_stay, inner, t32, nbr, sl[:ks].copy(),
+    t32, nbr, sl = _local_mesh(local, nodes.shape[0], slide, movable, inv)
+    return (nodes, n_boundary, n_boundary + n_stay, inner, t32, nbr, sl,
             _pairs_inside(walls, inv), _pairs_inside(curves, inv), outer_q)
 
 
