@@ -342,12 +342,14 @@ class BRep(Domain):
     def cleaned(
         self, tolerance: float, *, min_feature: float | None = None, max_area: float | None = None
     ) -> tuple[Domain, dict[str, int]]:
-        """Remove pieces shorter than ``tolerance`` (their neighbours meet at the removed
-        piece's start); a loop left with fewer than two pieces is dropped.  A boundary made of
-        segments only is cleaned as a polygon (merged vertices, spikes, parts beyond pinches
-        narrower than ``min_feature``: :meth:`Polygon.cleaned`) when its loops do not touch each
-        other.  A boundary with nothing to clean comes back itself (the stages then reuse what
-        they computed on it: the node estimate, 2-3 ms on the paper's L-shape)."""
+        """A boundary made of segments only is cleaned as a polygon (merged vertices, spikes,
+        parts beyond pinches narrower than ``min_feature``: :meth:`Polygon.cleaned`) when its
+        loops do not touch each other.  Otherwise the cusps where it touches itself
+        tangentially are bridged (:meth:`_bridge_cusps`, about ``CUSP_WIDTH * tolerance`` wide;
+        counted as ``"cusps"``), and pieces shorter than ``tolerance`` are removed (their
+        neighbours meet at the removed piece's start); a loop left with fewer than two pieces
+        is dropped.  A boundary with nothing to clean comes back itself (the stages then reuse
+        what they computed on it: the node estimate, 2-3 ms on the paper's L-shape)."""
         if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance >= 0):
             raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
         if not np.any(self._sw):
