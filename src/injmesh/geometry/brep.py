@@ -396,22 +396,7 @@ class BRep(Domain):
                 if pos[j] - gap_start > 0:
                     start[j] = self._p0[idx[gap_start % len(idx)]]
             end = np.roll(start, -1, axis=0)
-            sweep = self._sw[kept].copy()
-            arc = sweep != 0
-            if arc.any():
-                # Keep each arc's circle: correct its sweep by how far its ends moved round it.
-                cc = self._c[kept][arc]
-                ka = kept[arc]
-                a_s = np.arctan2(start[arc, 1] - cc[:, 1], start[arc, 0] - cc[:, 0])
-                a_e = np.arctan2(end[arc, 1] - cc[:, 1], end[arc, 0] - cc[:, 0])
-                e_old = self._p1[ka]
-                b_s = self._a0[ka]
-                b_e = np.arctan2(e_old[:, 1] - cc[:, 1], e_old[:, 0] - cc[:, 0])
-
-                def wrap(t: FloatArray) -> FloatArray:
-                    return (t + math.pi) % (2 * math.pi) - math.pi
-
-                sweep[arc] = sweep[arc] - wrap(a_s - b_s) + wrap(a_e - b_e)
+            sweep = self._moved_sweeps(kept, start, end)
             p0.append(start)
             p1.append(end)
             c.append(self._c[kept])
@@ -425,6 +410,26 @@ class BRep(Domain):
         out._set_local(np.concatenate(p0), np.concatenate(p1), np.concatenate(c), np.concatenate(sw),
                        np.array(starts), self._origin)
         return out, report
+
+    def _moved_sweeps(self, pieces: IntArray, start: FloatArray, end: FloatArray) -> FloatArray:
+        """The sweeps of ``pieces`` once their ends are moved to ``start`` and ``end`` (points
+        on their circles): each arc keeps its circle, its sweep corrected by how far each end
+        moved round it (0 for segments)."""
+        sweep = self._sw[pieces].copy()
+        arc = sweep != 0
+        if arc.any():
+            cc = self._c[pieces][arc]
+            ka = pieces[arc]
+            a_s = np.arctan2(start[arc, 1] - cc[:, 1], start[arc, 0] - cc[:, 0])
+            a_e = np.arctan2(end[arc, 1] - cc[:, 1], end[arc, 0] - cc[:, 0])
+            e_old = self._p1[ka]
+            b_e = np.arctan2(e_old[:, 1] - cc[:, 1], e_old[:, 0] - cc[:, 0])
+
+            def wrap(t: FloatArray) -> FloatArray:
+                return (t + math.pi) % (2 * math.pi) - math.pi
+
+            sweep[arc] = sweep[arc] - wrap(a_s - self._a0[ka]) + wrap(a_e - b_e)
+        return sweep
 
     def _bridge_cusps(self, width: float) -> tuple[BRep, int]:
         """The boundary with each cusp bridged where its two sides are ``width`` apart.
@@ -486,18 +491,12 @@ class BRep(Domain):
         p0, p1 = self._p0.copy(), self._p1.copy()
         for i, o, a, b in bridges:
             p1[i], p0[o] = a, b
-        # Arcs keep their circle; their sweeps shrink to the new end points.
-        c, sw = self._c, self._sw
-        a_start = np.arctan2(p0[:, 1] - c[:, 1], p0[:, 0] - c[:, 0])
-        a_end = np.arctan2(p1[:, 1] - c[:, 1], p1[:, 0] - c[:, 0])
-        sweep = np.where(sw != 0, np.mod((a_end - a_start) * np.sign(sw), 2 * math.pi) * np.sign(sw), 0.0)
-        full = (sw != 0) & (np.abs(sw) >= 2 * math.pi - 1e-12) & np.all(p0 == p1, axis=1)
-        sweep[full] = sw[full]
+        sweep = self._moved_sweeps(np.arange(len(p0)), p0, p1)
         s0 = np.concatenate([p0, [a for _, _, a, _ in bridges]])
         s1 = np.concatenate([p1, [b for _, _, _, b in bridges]])
-        sc = np.concatenate([c, np.zeros((len(bridges), 2))])
+        sc = np.concatenate([self._c, np.zeros((len(bridges), 2))])
         ssw = np.concatenate([sweep, np.zeros(len(bridges))])
-        pts, vid = np.unique(np.concatenate([s0, s1]), axis=0, return_inverse=True)
+        _, vid = np.unique(np.concatenate([s0, s1]), axis=0, return_inverse=True)
         vid = vid.ravel()
         from .boolean import _chain
 

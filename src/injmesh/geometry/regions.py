@@ -583,10 +583,7 @@ def _segments(p: Piece) -> tuple[FloatArray, FloatArray]:
 def _insert(p: Piece, q: FloatArray, eps: float) -> Piece:
     """The piece with the points ``q`` (on it) inserted as fixed vertices."""
     a, b = _segments(p)
-    ab = b - a
-    ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
-    t = np.clip(np.einsum("qmk,mk->qm", q[:, None, :] - a[None], ab) / ab2, 0, 1)
-    dist = np.hypot(*(q[:, None, :] - a[None] - t[..., None] * ab[None]).transpose(2, 0, 1))
+    t, dist = _segment_feet(q, a, b)
     seg = np.argmin(dist, axis=1)
     tt = t[np.arange(len(q)), seg]
     pts, fixed = p.points.copy(), p.fixed.copy()
@@ -605,14 +602,19 @@ def _insert(p: Piece, q: FloatArray, eps: float) -> Piece:
     return Piece(pts, fixed, p.closed, p.project, p.owner)
 
 
-def _polyline_distance(q: FloatArray, loop: FloatArray) -> FloatArray:
-    """Distance from each point of ``q`` to the closed polyline ``loop``."""
-    a, b = loop, np.roll(loop, -1, axis=0)
+def _segment_feet(q: FloatArray, a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """For each point of ``q`` and each segment a-b: the foot's parameter along the segment
+    (clamped to [0, 1]) and the distance to it, both ``(len(q), len(a))``."""
     ab = b - a
     ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
     t = np.clip(np.einsum("qmk,mk->qm", q[:, None, :] - a[None], ab) / ab2, 0, 1)
-    gap = q[:, None, :] - a[None] - t[..., None] * ab[None]
-    out: FloatArray = np.hypot(gap[..., 0], gap[..., 1]).min(axis=1)
+    dist = np.hypot(*(q[:, None, :] - a[None] - t[..., None] * ab[None]).transpose(2, 0, 1))
+    return t, dist
+
+
+def _polyline_distance(q: FloatArray, loop: FloatArray) -> FloatArray:
+    """Distance from each point of ``q`` to the closed polyline ``loop``."""
+    out: FloatArray = _segment_feet(q, loop, np.roll(loop, -1, axis=0))[1].min(axis=1)
     return out
 
 

@@ -881,13 +881,10 @@ def effective_size(
     # Changes outside (band nodes lowered to the limited extension) do not count, nor rounding:
     # a cone of slope exactly ``rate`` comes back lower by an ulp here and there.
     inside = grid.inside
-    field = None
-    if np.all(out[inside] >= h0[inside] * (1.0 - 1e-12)):
-        field = GriddedSize._trusted(grid.x, grid.y, np.minimum(_fill_outside(out), dom.diameter))
-        if not _jumps_on_boundary(h, dom, field, grid.spacing, rate_, loops):
-            return h.restricted(dom)
-    if field is None:
-        field = GriddedSize._trusted(grid.x, grid.y, np.minimum(_fill_outside(out), dom.diameter))
+    field = GriddedSize._trusted(grid.x, grid.y, np.minimum(_fill_outside(out), dom.diameter))
+    if (np.all(out[inside] >= h0[inside] * (1.0 - 1e-12))
+            and not _jumps_on_boundary(h, dom, field, grid.spacing, rate_, loops)):
+        return h.restricted(dom)
     if grid.capped:
         return SizeFunction(_Lower(field, h.restricted(dom)))
     return SizeFunction(field)
