@@ -250,6 +250,10 @@ def _thick_cases():
         out.append(pytest.param(shape.domain(), factor * shape.size, id=f"{fam}{seed}x{factor}"))
     out.append(pytest.param(Rectangle((0, 0), (1, 1)), 0.3, id="square-coarse"))
     out.append(pytest.param(Circle((0, 0), 1) - Circle((0.55, 0), 0.3), 0.05, id="eccentric-hole"))
+    # Exactly two elements across: the feature size equals 2 h there, a tie that counts as thick.
+    out.append(pytest.param(Rectangle((0, 0), (2, 0.1)), 0.05, id="channel-tie"))
+    out.append(pytest.param(Rectangle((0, 0), (2, 0.1)), lambda p: 0.03 + 0.02 * p[:, 1] / 0.1,
+                            id="channel-tie-graded"))
     return out
 
 
@@ -265,7 +269,7 @@ def test_thick_claim_implies_the_feature_size_changes_nothing(domain, size) -> N
 @pytest.mark.parametrize(
     "domain, size",
     [
-        (Rectangle((0, 0), (2, 0.1)), 0.05),  # a channel two elements wide
+        (Rectangle((0, 0), (2, 0.1)), 0.06),  # a channel under two elements wide
         (Polygon([(0, 0), (1, 0), (1, 0.45), (0.55, 0.5), (1, 0.55), (1, 1), (0, 1)]), 0.05),  # a notch
         (Polygon([(0, 0), (1, 0), (0, 0.2)]), 0.02),  # a sharp wedge (11 degrees)
         (Rectangle((0, 0), (1, 1)) - Rectangle((0.2, 0.5), (0.8, 0.5005)), 0.05),  # a slit-like hole
@@ -300,9 +304,10 @@ def test_no_feature_layers_means_gradation_only() -> None:
     assert mesh.n_points > 0
 
 
-@pytest.mark.parametrize("name", ["unit_disc", "square_with_hole", "l_shape"])
+@pytest.mark.parametrize("name", ["unit_disc", "square_with_hole", "l_shape", "square_with_four_holes"])
 def test_paper_cases_are_claimed_thick(name: str) -> None:
-    """The paper's cases have no thin part at their sizes: effective_size skips the feature grid."""
+    """The paper's cases have no thin part at their sizes: effective_size skips the feature grid
+    (the four-hole square's holes are exactly 2 h from its sides: a tie, thick)."""
     from injmesh.cases import CASES
 
     case = CASES[name]
@@ -324,7 +329,7 @@ def test_thin_feature_size_skips_only_parts_that_are_thick_for_h() -> None:
     centre = np.array([[0.0, 0.0]])
     assert abs(fs(centre)[0] - feature_size(disc)(centre)[0]) < 1e-12
     strip = Rectangle((0.0, 0.0), (4.0, 0.2))
-    assert isinstance(thin_feature_size(strip, 0.1, 2.0), GriddedSize)
+    assert isinstance(thin_feature_size(strip, 0.12, 2.0), GriddedSize)
     assert thin_feature_size(strip, 0.01, 2.0) is None
 
 

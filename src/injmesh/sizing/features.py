@@ -93,11 +93,17 @@ GAP_DETOUR = 20.0
 #: Neighbouring nodes whose approximate nearest boundary points are more than this many grid
 #: spacings apart straddle the medial axis, perhaps: their nearest points are computed exactly.
 CANDIDATE_JUMP = 2.0
-#: :func:`thick_everywhere` is asked for walls closer than ``THICK_MARGIN * layers * h +
-#: THICK_PAD`` background grid spacings: the grid's feature size errs by about a spacing, and a
-#: domain near the limit takes the full computation.
+#: :func:`thick_everywhere` is asked for walls closer than ``THICK_MARGIN * layers * h``, h
+#: evaluated along the chord between them, and for walls back to back closer than
+#: ``THICK_PAD`` background grid spacings (the grid would see both sides of such a gap).  The
+#: pairs are searched within ``THICK_MARGIN * layers * h_max + THICK_PAD`` spacings.  Walls
+#: exactly ``layers * h`` apart count as thick (to ``THICK_TIE``, relative): there the feature
+#: size is exactly ``layers * h`` and changes nothing (the paper's four-hole square, whose
+#: holes are 0.3 from the sides where h = 0.15, is such a case: no grid is needed to find
+#: that nothing changes).
 THICK_MARGIN = 1.0
 THICK_PAD = 2.0
+THICK_TIE = 1e-9
 #: Walls face each other when the direction between them is within this many degrees more
 #: than ``corner_angle`` of both inward normals (slack for curved walls sampled by chords).
 FACING_SLACK = 10.0
@@ -543,7 +549,7 @@ def _closer_than_needed(start: FloatArray, foot: FloatArray, dist: FloatArray,
         a, f = start[pick], foot[pick]
         along = (a[None, :, :] + frac[:, None, None] * (f - a)[None, :, :]).reshape(-1, 2)
         want = np.max(needed(along).reshape(len(frac), -1), axis=0)
-        if np.any(dist[pick] < want):
+        if np.any(dist[pick] < want * (1.0 - THICK_TIE)):
             return True
         lo, batch = lo + batch, 4 * batch
     return False
@@ -932,15 +938,16 @@ def _probe_h(h: SizeFunction, domain: Domain) -> Callable[[FloatArray], FloatArr
 def _thick(domain: Domain, h_max: float, layers: float, corner_angle: float, spacing: float,
            h: Callable[[FloatArray], FloatArray] | None = None,
            loops: list[FloatArray] | None = None) -> bool:
-    """Whether the feature size is above ``layers * h`` everywhere (:func:`thick_everywhere`,
-    on ``loops`` when given), h bounded by ``h_max``, with a margin for a background grid of
-    ``spacing``; a variable h is evaluated where two walls face each other."""
+    """Whether the feature size is at least ``layers * h`` everywhere (:func:`thick_everywhere`,
+    on ``loops`` when given), h bounded by ``h_max`` (uniform when ``h`` is None), walls back
+    to back counted within a margin of a background grid of ``spacing``; a variable h is
+    evaluated where two walls face each other."""
     factor, pad = THICK_MARGIN * layers, THICK_PAD * spacing
-    if h is None:
-        return thick_everywhere(domain, factor * h_max + pad, corner_angle, back_to_back=pad, loops=loops)
 
     def needed(p: FloatArray) -> FloatArray:
-        return np.asarray(factor * np.minimum(h(p), h_max) + pad, dtype=np.float64)
+        if h is None:
+            return np.full(len(p), factor * h_max)
+        return np.asarray(factor * np.minimum(h(p), h_max), dtype=np.float64)
 
     return thick_everywhere(domain, factor * h_max + pad, corner_angle, needed, back_to_back=pad,
                             loops=loops)
