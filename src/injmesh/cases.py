@@ -81,8 +81,13 @@ def _cones(
     centres: list[tuple[float, float]], slope: float, base: float
 ) -> Callable[[FloatArray], FloatArray]:
     def h(p: FloatArray) -> FloatArray:
+        # min_i (slope r_i + base) is slope min_i r_i + base, to the bit (rounding is
+        # monotone): one distance array kept, not a stack of them (the stages call h often).
         p = np.asarray(p, dtype=float)
-        return np.min([slope * _r(p, cx, cy) + base for cx, cy in centres], axis=0)
+        r = _r(p, *centres[0])
+        for cx, cy in centres[1:]:
+            np.minimum(r, _r(p, cx, cy), out=r)
+        return slope * r + base
 
     return h
 
