@@ -313,3 +313,27 @@ def test_a_cusp_at_a_corner_is_bridged(h) -> None:
     # The sliver is thinner than h all along: the bridge is where it is a tenth of its widest
     # (at h/4 it took 56 % of the area), which takes about 0.1^1.5 of it.
     assert area * 0.96 < covered < area * (1 + 1e-3)
+
+
+@pytest.mark.parametrize("gap", [0.0015, 0.01])
+@pytest.mark.parametrize("h", [0.1, 0.05])
+def test_a_corner_near_another_loop_stays_on_its_own(gap, h) -> None:
+    """An island whose corner points at the coast, a gap of h/67 to h/5 away: the corner
+    belonged to both loops (each takes corners within two of its segments, for traced loops),
+    so the coast got a node off itself, on top of the island's, and the segments at it were
+    lost (found by fuzzing: every one of these four failed).  A corner goes to its nearest
+    loop only."""
+    island = Polygon([(1 + gap, 0), (1.3, -0.5), (1.6, -0.5), (1.6, 0.5), (1.3, 0.5)])
+    domain = Circle((0, 0), 1) | island
+    mesh = injmesh.generate(domain, h)
+    assert_valid_mesh(mesh, domain)
+    assert np.unique(mesh.points.round(12), axis=0).shape == mesh.points.shape
+    # Both loops are meshed: the nodes nearest the island's tip on the coast are not at it.
+    on_coast = np.abs(np.hypot(*mesh.points.T) - 1) < 1e-9
+    assert np.hypot(*(mesh.points[on_coast] - (1 + gap, 0)).T).min() >= gap * (1 - 1e-9)
+    assert mesh.quality().min() > 0.6
+    p, t = mesh.points, mesh.triangles
+    u, v = p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]
+    covered = 0.5 * np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]).sum()
+    # The disc (less its chords' segments) and the island: a 0.3 x 1 rectangle and a triangle.
+    assert covered == pytest.approx(math.pi + 0.3 + 0.5 * (0.3 - gap), rel=3e-3)

@@ -188,8 +188,10 @@ def mesh_boundary(
 
     along = _tip_graded(domain, h)
     pts, fixed, loop_id = [], [], []
+    feet = [_corner_feet(loop, corners, on) for loop in loops]
+    nearest = _nearest_loop_distance(feet, len(corners))
     for k, loop in enumerate(loops):
-        p, f = _insert_corners(loop, corners, on, diam)
+        p, f = _insert_corners(loop, corners, feet[k], nearest, on, diam)
         p, f = _tip_marks(domain, p, f, along, on)
         p, f, hp = _refine(domain, along, p, f)
         p, f = _select(domain, p, f, hp)
@@ -832,26 +834,57 @@ def _tip_marks(
     return np.concatenate([p, pts])[order], np.concatenate([fixed, np.zeros(len(pts), dtype=bool)])[order]
 
 
+#: What :func:`_corner_feet` finds of the corners near one loop: their indices, the nearest
+#: segment of each, the parameter and distance of its foot, and the radius within which a
+#: corner counts as the loop's.
+_Feet = tuple[NDArray[np.intp], NDArray[np.intp], FloatArray, FloatArray, float]
+
+
+def _corner_feet(loop: FloatArray, corners: FloatArray, on: float) -> _Feet:
+    """The corners within reach of this loop (closed polyline) and their feet on it."""
+    a, b = loop, np.roll(loop, -1, axis=0)
+    ab = b - a
+    ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+    # A corner belongs to this loop when the traced polyline passes close to it; traced
+    # polylines cut corners by up to about a grid cell, hence the loose radius.
+    radius = max(on, 2.0 * float(np.sqrt(ab2.max())))
+    if len(corners) == 0:
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty, np.zeros(0), np.zeros(0), radius
+    # Only corners that near the loop's box are measured (the other loops' corners, far
+    # away, would each be measured against many of this loop's segments): a point's
+    # nearest segment does not depend on the other points asked.
+    gap = np.maximum(np.maximum(loop.min(axis=0) - corners, corners - loop.max(axis=0)), 0.0)
+    near = np.flatnonzero(np.hypot(gap[:, 0], gap[:, 1]) <= radius * (1 + 1e-9))
+    seg, t, d = _nearest_segments(corners[near], a, ab, ab2)
+    return near, seg, t, d, radius
+
+
+def _nearest_loop_distance(feet: list[_Feet], n_corners: int) -> FloatArray:
+    """Each corner's distance to its nearest loop (``inf`` when no loop reaches it)."""
+    best = np.full(n_corners, np.inf)
+    for near, _, _, d, _ in feet:
+        np.minimum.at(best, near, d)
+    return best
+
+
 def _insert_corners(
-    loop: FloatArray, corners: FloatArray, on: float, diam: float
+    loop: FloatArray, corners: FloatArray, feet: _Feet, nearest: FloatArray, on: float, diam: float
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """Insert the corners that lie on this loop as fixed vertices; fix one anchor if none."""
+    """Insert the corners that lie on this loop as fixed vertices; fix one anchor if none.
+
+    ``feet``: :func:`_corner_feet` of this loop; ``nearest``: each corner's distance to its
+    nearest loop.  A corner is this loop's when it lies within the loop's radius and this loop
+    is (to ``on``) its nearest: two loops passing within the radius of each other (a polygon
+    vertex 0.0015 off a circle it nearly touches, for h = 0.006) would otherwise both take the
+    vertex, and the two coincident nodes lost the segments at it (found by fuzzing).  A point
+    where loops touch lies on both, and both take it.
+    """
     n = len(loop)
     fixed = np.zeros(n, dtype=bool)
-    if len(corners):
-        a, b = loop, np.roll(loop, -1, axis=0)
-        ab = b - a
-        ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
-        # A corner belongs to this loop when the traced polyline passes close to it; traced
-        # polylines cut corners by up to about a grid cell, hence the loose radius.
-        radius = max(on, 2.0 * float(np.sqrt(ab2.max())))
-        # Only corners that near the loop's box are measured (the other loops' corners, far
-        # away, would each be measured against many of this loop's segments): a point's
-        # nearest segment does not depend on the other points asked.
-        gap = np.maximum(np.maximum(loop.min(axis=0) - corners, corners - loop.max(axis=0)), 0.0)
-        near = np.flatnonzero(np.hypot(gap[:, 0], gap[:, 1]) <= radius * (1 + 1e-9))
-        seg, near_t, near_d = _nearest_segments(corners[near], a, ab, ab2)
-        mine = near_d <= radius
+    near, seg, near_t, near_d, radius = feet
+    if len(near):
+        mine = (near_d <= radius) & (near_d <= nearest[near] + on)
         if mine.any():
             seg, tt, c = seg[mine], near_t[mine], corners[near[mine]]
             # Vertices that coincide with a corner become that corner.
