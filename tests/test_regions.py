@@ -172,6 +172,29 @@ def test_regions_touching_each_other_and_the_boundary():
     assert all(tuple(e) in edges for e in np.sort(mesh.curve_edges, axis=1).tolist())
 
 
+@pytest.mark.parametrize("cy", [0.74, 0.76])
+@pytest.mark.parametrize("h", [0.082, 0.05])
+def test_a_lens_clipped_by_the_boundary(cy, h):
+    """A disc clipped by the domain's top side: a lens 0.03-0.015 thick whose arc meets the
+    side at 24-31 degrees.  The arc's first vertex lay within the merge band of the side (a
+    fine sampling), so the junction was moved along the side past the region's corner, and the
+    arc's nodes there slid onto the side: lost boundary segments in 5 of these 6 sizes (found by
+    fuzzing).  A crossing at an angle is not merged; its corner is the junction."""
+    domain = Rectangle((0.5, 0.3), (0.944085, 0.597748))
+    disc = Circle((0.920956, cy), 0.177288)
+    lens = disc & domain
+    mesh = injmesh.generate(domain, h, regions={"lens": lens})
+    assert_valid_mesh(mesh, domain)
+    assert mesh.region_areas()[1] == pytest.approx(lens.exact_brep().area, abs=1e-4)
+    p = mesh.points
+    # The interface is the arc only: its nodes on the circle, none beyond the corner on the side.
+    arc = np.unique(mesh.curve_edges.ravel())
+    assert np.abs(np.hypot(*(p[arc] - disc.center).T) - disc.r).max() < 1e-9
+    corner_x = disc.center[0] - np.sqrt(disc.r**2 - (0.597748 - cy) ** 2)
+    on_side = arc[np.abs(p[arc, 1] - 0.597748) < 1e-9]
+    assert len(on_side) == 1 and p[on_side[0], 0] == pytest.approx(corner_x, abs=1e-9)
+
+
 def test_region_side_partly_on_the_boundary():
     """The region's right side x = 1 is on the outer boundary below y = 0.3 and above 0.7 and
     inside the domain between them (a disc bulges out there).  Kept whole as an interface, it

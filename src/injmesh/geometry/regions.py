@@ -21,6 +21,7 @@ domain, two regions that overlap, a curve that leaves the domain or crosses itse
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -49,6 +50,13 @@ JUNCTION_MERGE = 0.05
 #: element could resolve): the stretch is the boundary's, and the region's curve meets the
 #: boundary where it leaves that band.
 BOUNDARY_MERGE = JUNCTION_MERGE
+#: ... and within ``MERGE_ANGLE`` degrees of parallel to it.  A region that crosses the
+#: boundary at an angle (a disc clipped by the domain: a lens) meets it at that angle whatever
+#: is merged, and a stretch merged next to the crossing (its first vertex within the band for a
+#: fine sampling) only moved the junction along the boundary, past the region's true corner:
+#: the curve's nodes there then slid onto the region's side that is the boundary (a lost
+#: boundary segment, found by fuzzing).
+MERGE_ANGLE = 15.0
 #: Curves meeting at a smaller angle (degrees) at a junction get a warning: no triangle in
 #: that angle can be well shaped.
 NARROW_ANGLE = 10.0
@@ -276,9 +284,12 @@ def _region_pieces(
         # the outer boundary "along" means within BOUNDARY_MERGE * h_min, ends included: a
         # region tangent to the boundary comes within 1e-6 of it near the contact, and its
         # nodes there made triangles of zero area with the boundary's.
-        hug = np.abs(domain.sdf(loop)) <= merge
+        d_loop = domain.sdf(loop)
+        hug = np.abs(d_loop) <= merge
         dm = np.abs(domain.sdf(mid))
-        drop = (dm <= eps) | ((dm <= merge) & hug & np.roll(hug, -1))
+        along = np.abs(np.roll(d_loop, -1) - d_loop) <= (
+            math.sin(math.radians(MERGE_ANGLE)) * np.hypot(*(nxt - loop).T))
+        drop = (dm <= eps) | ((dm <= merge) & hug & np.roll(hug, -1) & along)
         merged = drop & (dm > eps)
         if merged.any():
             import warnings
