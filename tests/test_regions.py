@@ -195,6 +195,29 @@ def test_a_lens_clipped_by_the_boundary(cy, h):
     assert len(on_side) == 1 and p[on_side[0], 0] == pytest.approx(corner_x, abs=1e-9)
 
 
+@pytest.mark.parametrize("offset", [1e-4, -1e-4, 1e-3, -1e-3])
+@pytest.mark.parametrize("h", [0.08, 0.05])
+def test_a_crack_grazing_a_region_corner_goes_through_it(offset, h):
+    """A crack drawn past a region's corner (offset > 0) or cutting it (< 0), 1e-4 to 1e-3 away:
+    the corner and the crack's nearest node (or its two crossings) could not be resolved, and 4
+    of these 8 lost a crack segment, the other 4 had q_min 0.002-0.06 (found by fuzzing).  The
+    crack now passes through the corner."""
+    box = Rectangle((0.3, 0.3), (0.6, 0.6))
+    shift = offset * np.sqrt(2)
+    crack = np.array([(0.4, 0.8 + shift), (0.8, 0.4 + shift)])
+    mesh = injmesh.generate(SQUARE, h, regions={"box": box}, curves={"crack": crack})
+    assert_valid_mesh(mesh, SQUARE)
+    assert mesh.quality().min() > 0.5
+    assert mesh.region_areas()[1] == pytest.approx(0.09, rel=1e-9)
+    p = mesh.points
+    edges = mesh.curve_edges[np.asarray(mesh.curve_names)[mesh.curve_tags] == "crack"]
+    on_crack = np.unique(edges.ravel())
+    assert np.hypot(*(p[on_crack] - (0.6, 0.6)).T).min() < 1e-12
+    # Every other crack node is on the drawn line.
+    rest = on_crack[np.hypot(*(p[on_crack] - (0.6, 0.6)).T) > 1e-12]
+    assert np.abs(p[rest].sum(axis=1) - 1.2 - shift).max() < 1e-9
+
+
 def test_region_side_partly_on_the_boundary():
     """The region's right side x = 1 is on the outer boundary below y = 0.3 and above 0.7 and
     inside the domain between them (a disc bulges out there).  Kept whole as an interface, it

@@ -504,8 +504,10 @@ def _intersection(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray) ->
 
 def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
     """Insert as fixed vertices the points where pieces cross or where one ends on another
-    (crossings closer than ``merge`` are one)."""
-    extra: list[list[FloatArray]] = [[] for _ in pieces]
+    (crossings closer than ``merge`` are one, and a crossing within ``merge`` of a piece's
+    fixed vertex is that vertex), and into a user curve the other pieces' fixed vertices
+    within ``merge`` of it (:func:`_near_misses`)."""
+    extra: list[list[FloatArray]] = _near_misses(pieces, eps, merge)
     for i, pi in enumerate(pieces):
         ai, bi = _segments(pi)
         for j in range(i + 1, len(pieces)):
@@ -524,8 +526,11 @@ def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
                         x = pj.project(pi.project(x[None, :]))[0]
                     extra[i].append(x)
                     extra[j].append(x)
-    # One list of junctions for every piece, so that pieces meeting there share the point.
-    allx = _unique_points(np.array([x for more in extra for x in more]), merge) if any(extra) else None
+    # One list of junctions for every piece, so that pieces meeting there share the point; the
+    # pieces' fixed vertices first, so that a crossing next to one becomes it.
+    fixed = [p.points[p.fixed] for p in pieces]
+    allx = _unique_points(np.concatenate(fixed + [np.array([x for more in extra for x in more])]), merge) \
+        if any(extra) else None
     out = []
     for p, more in zip(pieces, extra, strict=True):
         if not more or allx is None:
@@ -534,6 +539,33 @@ def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
         mine = np.array(more)
         near = np.min(np.hypot(*(allx[:, None, :] - mine[None, :, :]).transpose(2, 0, 1)), axis=1) <= merge
         out.append(_insert(p, allx[near], eps))
+    return out
+
+
+def _near_misses(pieces: list[Piece], eps: float, merge: float) -> list[list[FloatArray]]:
+    """For each piece, the fixed vertices of the other pieces (corners, end points, junctions)
+    within ``merge`` of it but not on it, if it is a user curve.
+
+    A curve drawn past a region's corner, or ending next to another curve, closer than
+    ``merge`` (JUNCTION_MERGE * h_min) without touching it: no element can resolve the gap,
+    and the two fixed nodes that close lost the curve's segment between them (found by
+    fuzzing: a polyline passing 7e-5 and 9e-4 from a region's corner, h = 0.08-0.09).  The curve
+    is made to pass through the vertex instead, which moves it by less than ``merge``.  Region
+    boundaries are not bent: their nodes slide on the region's own boundary.
+    """
+    out: list[list[FloatArray]] = [[] for _ in pieces]
+    for i, pi in enumerate(pieces):
+        if pi.owner >= 0:
+            continue
+        others = [pj.points[pj.fixed] for j, pj in enumerate(pieces) if j != i]
+        f = np.concatenate(others) if others else np.empty((0, 2))
+        lo, hi = pi.points.min(axis=0) - merge, pi.points.max(axis=0) + merge
+        f = f[np.all((f >= lo) & (f <= hi), axis=1)]
+        if not len(f):
+            continue
+        a, b = _segments(pi)
+        d = _segment_feet(f, a, b)[1].min(axis=1)
+        out[i] += list(f[(d > eps) & (d <= merge)])
     return out
 
 
