@@ -430,13 +430,15 @@ def _mouths(domain: Domain, h: SizeFn) -> tuple[FloatArray, FloatArray]:
 TIP_STEPS = 64
 #: Corners with an interior angle below this (degrees) are sharp: see :func:`_pin_wedges`.
 #: Pinning at 30-60 degrees lowered q_min next to the tip (0.70 -> 0.56 on a 45-degree kite).
-#: Between 25 and 30 the isosceles tip costs the strip behind it: its triangles have an angle
-#: of 90 + a/2 (q 0.69 at 25 degrees, 0.66 at 30), while unpinned walls come out staggered,
-#: tip at ~0.91 of the angle's bound and strip ~0.82.  Over the sharp corners of
-#: ``benchmarks/robustness.py``'s 1000 polygons (whole-mesh q_min over the sharpest angle's
-#: bound, mean per case), 25 / 28 / 30 gave 0.947 / 0.948 / 0.939 for corners of 25-28
-#: degrees and 0.963 / 0.963 / 0.882 for 28-30: the same up to 28, worse beyond.
-SHARP_CORNER = 25.0
+#: Above this the isosceles tip costs the strip behind it: the triangle on the tip's base has
+#: an angle of 90 + a/2 at a wall node, so its q is at most 8 sin(45 + a/4) sin^2(22.5 - a/8)
+#: (0.717 at 20 degrees, 0.70 at 22.9, 0.687 at 25, 0.66 at 30), while unpinned walls come
+#: out staggered, tip at ~0.91 of the angle's bound and strip ~0.82.  22.5 keeps that bound
+#: at 0.70 or more (issue 8's "thin parts keep q_min >= 0.7").  Over
+#: ``benchmarks/robustness.py``'s 1000 polygons, 25 -> 22.5 took the cases whose thin parts
+#: fall below 0.7 from 52 to 11; the tip triangles of the 22.5-25 degree corners went from
+#: the angle's bound to 0.90-0.95 of it (cases below 0.95 of it: 23 -> 50 of 217).
+SHARP_CORNER = 22.5
 #: Nodes of a sharp corner's walls are held still where the walls are closer than this times h.
 PIN_WIDTH = 0.8
 
