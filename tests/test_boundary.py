@@ -275,19 +275,25 @@ def test_sharp_tip_walls_are_graded_in_step_from_r1(angle: float) -> None:
     assert np.allclose(walls[0][:6], upper[:6], rtol=1e-6)
 
 
-def test_sharp_tip_strip_next_to_the_tip_is_well_shaped() -> None:
+def _tip_and_strip(angle: float, size, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """q of a spike's mesh, its triangles at the tip, and the others within ``reach`` of it."""
     import warnings
 
     import injmesh
 
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mesh = injmesh.generate(_spike(angle), size)
+    tip = np.hypot(*mesh.points.T) < 1e-12
+    at_tip = tip[mesh.triangles].any(axis=1)
+    strip = ~at_tip & (np.hypot(*mesh.points[mesh.triangles].mean(axis=1).T) < reach)
+    return mesh.quality(), at_tip, strip
+
+
+def test_sharp_tip_strip_next_to_the_tip_is_well_shaped() -> None:
+
     for angle in (5.0, 10.0):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            mesh = injmesh.generate(_spike(angle), _falling)
-        q = mesh.quality()
-        tip = np.hypot(*mesh.points.T) < 1e-12
-        at_tip = tip[mesh.triangles].any(axis=1)
-        strip = ~at_tip & (np.hypot(*mesh.points[mesh.triangles].mean(axis=1).T) < 0.1)
+        q, at_tip, strip = _tip_and_strip(angle, _falling, 0.1)
         assert at_tip.sum() == 1 and strip.any()
         # Nearly square trapezoids, two triangles each: q ~0.8 (0.64 and 0.71 before).
         assert q[strip].min() >= 0.75, (angle, q[strip].min())
@@ -300,17 +306,7 @@ def test_the_strip_behind_a_sharp_tip_keeps_0_7(angle, size) -> None:
     most 0.70 from 22.9 degrees on (0.67 at 24.5).  Tips are pinned isosceles only below
     SHARP_CORNER = 22.5 degrees; above, the walls come out staggered, the tip triangle within
     ~10 % of the angle's bound and the strip well above 0.7 (issue 8: thin parts >= 0.7)."""
-    import warnings
-
-    import injmesh
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        mesh = injmesh.generate(_spike(angle), size)
-    q = mesh.quality()
-    tip = np.hypot(*mesh.points.T) < 1e-12
-    at_tip = tip[mesh.triangles].any(axis=1)
-    strip = ~at_tip & (np.hypot(*mesh.points[mesh.triangles].mean(axis=1).T) < 0.3)
+    q, at_tip, strip = _tip_and_strip(angle, size, 0.3)
     a = math.radians(angle)
     bound = 8 * math.sin(a / 2) * math.sin((math.pi - a) / 4) ** 2
     assert at_tip.sum() == 1
