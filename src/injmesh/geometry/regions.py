@@ -564,7 +564,11 @@ def _near_misses(pieces: list[Piece], eps: float, merge: float) -> list[list[Flo
         if not len(f):
             continue
         a, b = _segments(pi)
-        d = _segment_feet(f, a, b)[1].min(axis=1)
+        # In chunks of about 2e6 vertex-segment pairs (a digitised fault and a coastline's
+        # corners would not fit at once).
+        step = max(1, 2_000_000 // max(len(a), 1))
+        d = np.concatenate([_segment_feet(f[s:s + step], a, b)[1].min(axis=1)
+                            for s in range(0, len(f), step)])
         out[i] += list(f[(d > eps) & (d <= merge)])
     return out
 
