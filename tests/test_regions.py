@@ -218,6 +218,23 @@ def test_a_crack_grazing_a_region_corner_goes_through_it(offset, h):
     assert np.abs(p[rest].sum(axis=1) - 1.2 - shift).max() < 1e-9
 
 
+@pytest.mark.parametrize("h", [0.08, 0.05])
+def test_a_crack_bending_back_across_a_region_side(h):
+    """A crack that leaves a box across its side and comes back 0.0032 further along: its two
+    crossings are closer than the junction merge (0.05 h).  Merged into one, the point went
+    into one of the crack's segments only, and the other crossed the side with no node there
+    (a lost segment at h = 0.08; found by fuzzing).  Both crossings are nodes now.  (The tip
+    beyond the side, 0.005 by 0.0032, is far below h: its triangles are poor, q ~0.1.)"""
+    box = Rectangle((0.3, 0.3), (0.6, 0.6))
+    crack = np.array([(0.45, 0.40), (0.605, 0.45), (0.45, 0.50)])
+    mesh = injmesh.generate(SQUARE, h, regions={"box": box}, curves={"crack": crack})
+    assert_valid_mesh(mesh, SQUARE)
+    assert mesh.region_areas()[1] == pytest.approx(0.09, rel=1e-9)
+    p = mesh.points
+    for y in (0.40 + 0.05 * 0.15 / 0.155, 0.45 + 0.05 * 0.005 / 0.155):
+        assert np.hypot(p[:, 0] - 0.6, p[:, 1] - y).min() < 1e-9
+
+
 def test_region_side_partly_on_the_boundary():
     """The region's right side x = 1 is on the outer boundary below y = 0.3 and above 0.7 and
     inside the domain between them (a disc bulges out there).  Kept whole as an interface, it
