@@ -535,9 +535,10 @@ def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
                     tags.append((i, j, s + r if pi.owner < 0 else -1, c if pj.owner < 0 else -1))
     # One list of junctions for every piece, so that pieces meeting there share the point; the
     # pieces' fixed vertices first, so that a crossing next to one becomes it.
+    # (The near misses are fixed vertices, and the crossings are listed once: every point of
+    # ``extra`` is among these.)
     fixed = np.concatenate([p.points[p.fixed] for p in pieces] + [np.empty((0, 2))])
-    others = [x for more in extra for x in more]
-    allx = _merged_junctions(fixed, crossings, tags, others, merge, 10 * eps) if any(extra) else None
+    allx = _merged_junctions(fixed, crossings, tags, merge, 10 * eps) if any(extra) else None
     out = []
     for p, more in zip(pieces, extra, strict=True):
         if not more or allx is None:
@@ -550,9 +551,9 @@ def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
 
 
 def _merged_junctions(fixed: FloatArray, crossings: list[FloatArray], tags: list[tuple[int, int, int, int]],
-                      others: list[FloatArray], merge: float, same: float) -> FloatArray:
-    """The junction points: the fixed vertices, then the crossings, then the other points, each
-    dropped when closer than ``merge`` to an earlier one; except that two crossings of the same
+                      merge: float, same: float) -> FloatArray:
+    """The junction points: the fixed vertices, then the crossings, each dropped when closer
+    than ``merge`` to an earlier one; except that two crossings of the same
     two pieces on different segments of a user curve (``tags``: the pieces, and the curves'
     segments, -1 for a region's) more than ``same`` apart are both kept.
 
@@ -562,7 +563,7 @@ def _merged_junctions(fixed: FloatArray, crossings: list[FloatArray], tags: list
     """
     from scipy.spatial import cKDTree
 
-    pts = np.concatenate([fixed, np.asarray(crossings).reshape(-1, 2), np.asarray(others).reshape(-1, 2)])
+    pts = np.concatenate([fixed, np.asarray(crossings).reshape(-1, 2)])
     if len(pts) < 2:
         return pts
     first = len(fixed)

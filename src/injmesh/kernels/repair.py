@@ -516,19 +516,12 @@ def sub_mesh_of(p, tri, indptr, adj, repair_q, reach, band, n_fixed, slide, wall
     m = tri.shape[0]
     q = triangle_quality(p, tri)
     mark = np.zeros(n, dtype=np.bool_)
-    n_seeds = 0
     for t in range(m):
         if q[t] < repair_q:
             for k in range(3):
-                if not mark[tri[t, k]]:
-                    mark[tri[t, k]] = True
-                    n_seeds += 1
-    seeds = np.empty(n_seeds, dtype=np.int64)
-    s = 0
-    for v in range(n):
-        if mark[v]:
-            seeds[s] = v
-            s += 1
+                mark[tri[t, k]] = True
+    seeds = np.flatnonzero(mark).astype(np.int64)
+    n_seeds = seeds.shape[0]
     inner = np.zeros(m, dtype=np.bool_)
     if n_seeds == 0:
         empty2 = np.zeros((0, 2), dtype=np.int64)

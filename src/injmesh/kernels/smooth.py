@@ -1312,12 +1312,7 @@ def optimize_trials(p, tri, start, corner, move, target, star, prev_b, next_b, o
         for k in range(n_free):
             depth[rows[k]] = -reach * d[k]
     n_bnd = m - n_free
-    bnd_rows = np.empty(n_bnd, dtype=np.int64)
-    k = 0
-    for a in range(m):
-        if on_bnd[a]:
-            bnd_rows[k] = a
-            k += 1
+    bnd_rows = np.flatnonzero(on_bnd).astype(np.int64)
     done = np.zeros(m, dtype=np.bool_)
     step = np.empty((m, 2))
     inside = np.empty(m, dtype=np.bool_)
