@@ -265,16 +265,19 @@ def test_flip_near_matches_numpy(seed: int) -> None:
     assert flip_near(q, np.zeros((0, 3), dtype=np.int64), near, False)[0] < 0
 
 
+def _ring_rows(k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Sliding rows (node, previous, next) and segments of a loop of the first k nodes."""
+    b = np.arange(k, dtype=np.int64)
+    return np.stack([b, np.roll(b, 1), np.roll(b, -1)], axis=1), np.stack([b, np.roll(b, -1)], axis=1)
+
+
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("given", [False, True])
 def test_patch_of_matches_numpy(seed: int, given: bool) -> None:
     p, tri = _mesh(seed, n=150)
     rng = np.random.default_rng(seed)
     n_fixed = 12
-    # Sliding rows (node, previous, next) along the boundary nodes, segments between them.
-    b = np.arange(12, dtype=np.int64)
-    slide = np.stack([b, np.roll(b, 1), np.roll(b, -1)], axis=1)
-    walls = np.stack([b, np.roll(b, -1)], axis=1)
+    slide, walls = _ring_rows(n_fixed)
     touched = rng.integers(0, len(p), 3).astype(np.int64)
     ring = 2
     t32 = np.ascontiguousarray(tri, dtype=np.int32)
@@ -368,9 +371,7 @@ def test_sub_mesh_and_stitch_match_numpy(seed: int) -> None:
     p, tri = _mesh(seed, n=300)
     rng = np.random.default_rng(seed)
     n_fixed = 12
-    b = np.arange(12, dtype=np.int64)
-    slide = np.stack([b, np.roll(b, 1), np.roll(b, -1)], axis=1)
-    walls = np.stack([b, np.roll(b, -1)], axis=1)
+    slide, walls = _ring_rows(n_fixed)
     curves = np.ascontiguousarray(tri[rng.integers(0, len(tri), 5)][:, :2])
     indptr, adj, _, _ = adjacency(len(p), np.ascontiguousarray(tri, dtype=np.int32), 3)
     q = triangle_quality(p, tri)
