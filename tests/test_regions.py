@@ -371,6 +371,39 @@ def test_curve_leaving_the_domain():
         injmesh.generate(hole, 0.1, curves=[[(0.2, 0.5), (0.8, 0.5)]])
 
 
+NOTCHED = SQUARE - Rectangle((0.5, 0.5), (1.5, 1.5))  # a reflex corner at (0.5, 0.5)
+CLIP = np.array([-0.41, 0.912]) / np.hypot(-0.41, 0.912)  # the direction of the faults below
+
+
+def _fault_at(x0: float) -> np.ndarray:
+    """A fault through (x0, 0.5), clipping the reflex corner of NOTCHED by (x0 - 0.5) sin 66°:
+    outside the domain over a stretch shorter than the inside test's first samples."""
+    at = np.array([x0, 0.5])
+    return np.array([at - 0.45 * CLIP, at + 0.3 * CLIP])
+
+
+@pytest.mark.parametrize("x0", [0.5015, 0.4985, 0.4995])
+def test_a_fault_grazing_a_boundary_corner_goes_through_it(x0):
+    """A fault passing a corner of the boundary within 0.05 h (outside it or inside): no
+    element could fill the sliver between them.  The fault that left the domain unseen by the
+    inside test lost two boundary segments (found by fuzzing); passing inside, q_min was 0.07.
+    It now passes through the corner, which meets the boundary there."""
+    mesh = injmesh.generate(NOTCHED, 0.05, curves={"fault": _fault_at(x0)})
+    assert_valid_mesh(mesh, NOTCHED)
+    assert mesh.quality().min() > 0.5
+    p = mesh.points
+    on_fault = np.unique(mesh.curve_edges.ravel())
+    assert np.hypot(*(p[on_fault] - 0.5).T).min() < 1e-12
+    assert sum(a for a in mesh.region_areas()) == pytest.approx(0.75, rel=1e-9)
+
+
+def test_a_fault_clipping_a_boundary_corner_is_refused():
+    """Farther than 0.05 h from the corner, the fault leaves the domain and is refused, though
+    its stretch outside (0.01 long) lies between two of the inside test's first samples."""
+    with pytest.raises(CurveError, match=r"curve 'fault' leaves the domain near \(0\.50"):
+        injmesh.generate(NOTCHED, 0.05, curves={"fault": _fault_at(0.504)})
+
+
 def test_self_crossing_curve():
     bow = [(0.2, 0.2), (0.8, 0.8), (0.8, 0.2), (0.2, 0.8)]
     with pytest.raises(CurveError, match=r"curve 'bow' crosses itself near \(0\.5, 0\.5\)"):

@@ -394,6 +394,7 @@ def _curve_piece(domain: Domain, name: str, line: FloatArray, c: int, h_min: flo
     closed = len(line) > 3 and bool(np.all(line[0] == line[-1]))
     if closed:
         line = line[:-1]
+    line = _through_corners(domain, line, closed, eps, max(10 * eps, JUNCTION_MERGE * h_min))
     _check_inside(domain, name, line, closed, h_min, eps)
     _check_simple(name, line, closed, eps)
     # The projector: an exact boundary representation of the polyline (open: there and back).
@@ -417,9 +418,80 @@ def _curve_piece(domain: Domain, name: str, line: FloatArray, c: int, h_min: flo
     return Piece(line, fixed, closed, b.project, -1 - c)
 
 
+def _through_corners(domain: Domain, line: FloatArray, closed: bool, eps: float, merge: float
+                     ) -> FloatArray:
+    """The polyline made to pass through the domain's corners within ``merge`` of it (and not
+    on it): its vertex nearest such a corner moves onto it when that close, else the corner is
+    inserted as a vertex.  The curve moves by less than ``merge``.
+
+    A fault drawn past a corner of the boundary closer than any element could resolve cuts off
+    a sliver no triangle fits: past a reflex corner at h/30 it even left the domain over a
+    stretch of h/10, unseen by the inside test's samples, and the boundary segments at the
+    corner were lost (found by fuzzing).  Through the corner it meets the boundary there, a
+    junction.  As for a region's corner near a curve (:func:`_near_misses`).
+    """
+    corners = domain.corners()
+    lo, hi = line.min(axis=0) - merge, line.max(axis=0) + merge
+    corners = corners[np.all((corners >= lo) & (corners <= hi), axis=1)]
+    if not len(corners):
+        return line
+    a = line
+    b = np.roll(line, -1, axis=0)
+    if not closed:
+        a, b = a[:-1], b[:-1]
+    if not len(a):
+        return line
+    # In chunks of about 2e6 corner-segment pairs (a digitised fault across a coastline).
+    step = max(1, 2_000_000 // len(a))
+    seg_parts, t_parts, d_parts = [], [], []
+    for s in range(0, len(corners), step):
+        t, dist = _segment_feet(corners[s:s + step], a, b)
+        k = np.argmin(dist, axis=1)
+        rows = np.arange(len(k))
+        seg_parts.append(k)
+        t_parts.append(t[rows, k])
+        d_parts.append(dist[rows, k])
+    seg, tt, d = np.concatenate(seg_parts), np.concatenate(t_parts), np.concatenate(d_parts)
+    near = (d > eps) & (d <= merge)
+    if not near.any():
+        return line
+    out = line.copy()
+    extra, keys = [], []
+    for c, k, t in zip(corners[near], seg[near], tt[near], strict=True):
+        # The segment's end nearer the corner: moved onto it when within ``merge`` (a vertex
+        # next to the corner would leave a segment no element resolves), else the corner is
+        # inserted where its foot is.
+        v = k if t <= 0.5 else (k + 1) % len(line)
+        if np.hypot(*(out[v] - c)) <= merge:
+            out[v] = c
+        else:
+            extra.append(c)
+            keys.append(k + float(np.clip(t, 1e-9, 1 - 1e-9)))
+    if extra:
+        order = np.argsort(np.concatenate([np.arange(len(out), dtype=float), keys]), kind="stable")
+        out = np.concatenate([out, np.array(extra)])[order]
+    return out
+
+
+#: The inside test of a curve bisects its samples down to this fraction of h_min (below which
+#: an excursion out of the domain is too small for it to find), with at most ``INSIDE_SAMPLES``
+#: evaluations of d.
+INSIDE_RESOLUTION = 1e-3
+INSIDE_SAMPLES = 1_000_000
+
+
 def _check_inside(domain: Domain, name: str, line: FloatArray, closed: bool, h_min: float, eps: float
                   ) -> None:
-    """Vertices and points every quarter h_min along the segments must be inside or on."""
+    """Vertices and points every quarter h_min along the segments must be inside or on, and
+    so must every point in between where d could exceed ``eps``.
+
+    d changes by at most the distance between two points, so between samples ``s`` apart
+    with distances d_a and d_b it is at most ``(d_a + d_b + s) / 2``: such intervals are
+    bisected until that bound is below ``eps`` or the interval is ``INSIDE_RESOLUTION * h_min``
+    short.  A curve clipping a corner by a fraction of h (outside over a stretch shorter than
+    the samples' spacing) is then found, and a curve ending on the boundary costs a few
+    evaluations per level at its end.
+    """
     a = line
     b = np.roll(line, -1, axis=0)
     if not closed:
@@ -430,10 +502,26 @@ def _check_inside(domain: Domain, name: str, line: FloatArray, closed: bool, h_m
     t = (np.arange(len(seg)) - np.repeat(np.cumsum(n + 1) - (n + 1), n + 1)) / np.repeat(n, n + 1)
     q = a[seg] + t[:, None] * (b - a)[seg]
     d = domain.sdf(q)
-    out = d > eps
-    if out.any():
-        x, y = q[np.argmax(out)]
-        raise CurveError(f"curve {name!r} leaves the domain near ({x:.6g}, {y:.6g})")
+    # The intervals between consecutive samples of a segment.
+    same = seg[1:] == seg[:-1]
+    qa, qb, da, db = q[:-1][same], q[1:][same], d[:-1][same], d[1:][same]
+    used = len(q)
+    smallest = INSIDE_RESOLUTION * h_min
+    while True:
+        out = d > eps
+        if out.any():
+            x, y = q[np.argmax(out)]
+            raise CurveError(f"curve {name!r} leaves the domain near ({x:.6g}, {y:.6g})")
+        s = np.hypot(*(qb - qa).T)
+        suspect = (0.5 * (da + db + s) > eps) & (s > smallest)
+        if not suspect.any() or used + int(suspect.sum()) > INSIDE_SAMPLES:
+            return
+        qa, qb, da, db = qa[suspect], qb[suspect], da[suspect], db[suspect]
+        q = 0.5 * (qa + qb)
+        d = domain.sdf(q)
+        used += len(q)
+        qa, qb = np.concatenate([qa, q]), np.concatenate([q, qb])
+        da, db = np.concatenate([da, d]), np.concatenate([d, db])
 
 
 def _check_simple(name: str, line: FloatArray, closed: bool, eps: float) -> None:
