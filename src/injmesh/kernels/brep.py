@@ -606,6 +606,17 @@ def _on_piece(k, x, y, p0, p1, c, r, a0, sw, tol):  # type: ignore[no-untyped-de
     return d2 <= tol * tol
 
 
+#: Crossings of a circle with a line or circle that is nearly tangent to it are one tangent
+#: point when the squared half-chord is below ``_TANGENT * r * (r + distance)``: it is a
+#: difference of squares of lengths near r, so its rounding error is a few ulps of r^2, and
+#: its square root, the half-chord, is uncertain by ~1e-8 r.  Taken as two crossings, a circle
+#: tangent to a rectangle's side at its corner split the side 5e-9 from the corner, a vertex
+#: the corner could not snap to (found by fuzzing), and the boundary did not close.  One point
+#: at the foot of the centre is well conditioned; it moves a true pair of crossings ~1e-7 r
+#: apart onto their midpoint.
+_TANGENT = 64 * 2.220446049250313e-16
+
+
 @nb.njit(cache=True)
 def split_points(pairs, p0, p1, c, r, a0, sw, tol):  # type: ignore[no-untyped-def]
     """Points where the pieces of each pair meet, as records ``(piece, x, y)``.
@@ -642,7 +653,7 @@ def split_points(pairs, p0, p1, c, r, a0, sw, tol):  # type: ignore[no-untyped-d
                 a = (d * d + r1 * r1 - r2 * r2) / (2.0 * d)
                 h2 = r1 * r1 - a * a
                 ex, ey = dx / d, dy / d
-                if h2 <= tol * tol:  # tangent: one point
+                if h2 <= max(tol * tol, _TANGENT * r1 * (r1 + d)):  # tangent: one point
                     px[0], py[0] = c[i, 0] + a * ex, c[i, 1] + a * ey
                     npts = 1
                 else:
@@ -661,7 +672,7 @@ def split_points(pairs, p0, p1, c, r, a0, sw, tol):  # type: ignore[no-untyped-d
                 hh = math.hypot(c[a, 0] - fx, c[a, 1] - fy)
                 if hh <= r[a] + tol:
                     g2 = r[a] * r[a] - hh * hh
-                    if g2 <= tol * tol:  # tangent
+                    if g2 <= max(tol * tol, _TANGENT * r[a] * (r[a] + hh)):  # tangent: one point
                         px[0], py[0] = fx, fy
                         npts = 1
                     else:
