@@ -264,17 +264,51 @@ def test_crack_crossing_an_inclusion_meets_it_at_a_node():
     assert length == pytest.approx(0.8, rel=1e-12)
 
 
-def test_tangent_regions_share_one_contact_node_and_say_so():
-    """Two discs touching at one point: the crossings of their polylines scatter around the
-    contact; they must become one node, and the cusp (no triangle in it can be well shaped)
-    must be reported, not left as a silent q = 0.001."""
+@pytest.mark.parametrize("h", [0.05, 0.03])
+def test_tangent_regions_bridge_their_cusps_and_say_so(h):
+    """Two discs touching at one point: the crossings of their polylines scattered around the
+    contact (one node then, and two cusps no triangle can fill, q ~ 0.001).  The later disc
+    now follows the earlier one where they are closer than 0.05 h, says so, and leaves it at
+    the band's edge: both cusps are bridged."""
     regions = {"a": Circle((0.5, 0.5), 0.3), "b": Circle((1.1, 0.5), 0.3)}
-    with pytest.warns(UserWarning, match=r"'a' and 'b' meet at \(0\.8, 0\.5\)"):
-        mesh = injmesh.generate(Rectangle((0, 0), (2, 1)), 0.05, regions=regions)
+    with pytest.warns(UserWarning, match=r"region 'b' runs within 0\.05 h of region 'a' near \(0\.80"):
+        mesh = injmesh.generate(Rectangle((0, 0), (2, 1)), h, regions=regions)
     assert_valid_mesh(mesh, Rectangle((0, 0), (2, 1)))
-    d = np.hypot(*(mesh.points - [0.8, 0.5]).T)
-    assert d.min() < 1e-9  # a node at the contact
-    assert np.sort(d)[1] > 0.05 * 0.05  # and no second one next to it
+    assert mesh.quality().min() > 0.4
+    # The discs' polygons of chords fall short by ~(h/r)^2/6; the bridged cusps are ~1e-6.
+    assert mesh.region_areas()[1:] == pytest.approx([np.pi * 0.09] * 2, rel=(h / 0.3) ** 2 / 4)
+    near = mesh.points[np.hypot(*(mesh.points - [0.8, 0.5]).T) < 0.1]
+    gaps = np.hypot(*(near[:, None] - near[None]).transpose(2, 0, 1)) + np.eye(len(near))
+    assert gaps.min() > 0.05 * h  # no two nodes the band apart
+
+
+@pytest.mark.parametrize("h", [0.05, 0.02])
+def test_a_box_corner_touching_the_boundary_tangentially(h):
+    """A box whose corner touches a circular part of the boundary, its side tangent to the
+    circle there (found by fuzzing): the cusp between side and circle lost 63 segments of the
+    side at every h.  The side now follows the boundary within the band, and leaves it there."""
+    crescent = Circle((0.625, 0.625), 0.375) - Circle((0.75, 1), 0.125)
+    box = Rectangle((0.5, 0.375), (0.75, 0.875)) & crescent
+    with pytest.warns(UserWarning, match="region 'box' runs within 0.05 h of the boundary"):
+        mesh = injmesh.generate(crescent, h, regions={"box": box})
+    assert_valid_mesh(mesh, crescent)
+    assert mesh.quality().min() > 0.2  # the angle where the side leaves the circle: ~11 degrees
+    assert mesh.region_areas()[1] == pytest.approx(0.125, rel=1e-3)
+
+
+@pytest.mark.parametrize("h", [0.05, 0.03])
+@pytest.mark.parametrize("disc", [Circle((0.5, 0.7), 0.2), Circle((0.7, 0.7), 0.2)])
+def test_a_disc_tangent_to_a_box_side(disc, h):
+    """A disc touching a box's side in its middle or at its corner (found by fuzzing, with the
+    disc cut by the domain): two cusps, or one, between the disc and the side, with triangles
+    of zero area and lost segments.  The disc follows the side within the band."""
+    regions = {"box": Rectangle((0.3, 0.2), (0.7, 0.5)), "disc": disc}
+    with pytest.warns(UserWarning, match="region 'disc' runs within 0.05 h of region 'box'"):
+        mesh = injmesh.generate(SQUARE, h, regions=regions)
+    assert_valid_mesh(mesh, SQUARE)
+    assert mesh.quality().min() > 0.4
+    assert mesh.region_areas()[1] == pytest.approx(0.12, rel=1e-9)
+    assert mesh.region_areas()[2] == pytest.approx(np.pi * 0.04, rel=(h / 0.2) ** 2 / 4)
 
 
 @pytest.mark.parametrize("domain, region, area", [
@@ -361,6 +395,11 @@ def test_overlapping_regions():
         injmesh.generate(SQUARE, 0.1, regions={"a": Circle((0.4, 0.5), 0.2), "b": Circle((0.6, 0.5), 0.2)})
     with pytest.raises(RegionError, match="overlap"):  # one inside the other
         injmesh.generate(SQUARE, 0.1, regions={"a": Circle((0.5, 0.5), 0.3), "b": Circle((0.5, 0.5), 0.1)})
+    # A plus sign: no vertex of one box inside the other (found by fuzzing: meshed, with one
+    # box's tags in the overlap).
+    plus = {"a": Rectangle((0.2, 0.4), (0.8, 0.6)), "b": Rectangle((0.4, 0.2), (0.6, 0.8))}
+    with pytest.raises(RegionError, match=r"regions 'a' and 'b' overlap near \("):
+        injmesh.generate(SQUARE, 0.1, regions=plus)
 
 
 def test_curve_leaving_the_domain():

@@ -12,9 +12,13 @@ fault, a sensor line).  Both become *pieces*: polylines between *junctions*, whe
 
 Every piece carries its own exact projection (the region's, or the polyline's), so Step 1 and
 the smoothing keep its nodes on it.  Crossings closer than ``JUNCTION_MERGE * h_min`` are one
-junction (regions that touch at a point give a cluster of nearly equal crossings), and curves
-that meet at less than ``NARROW_ANGLE`` degrees there are reported with a warning: no triangle
-in such an angle can be well shaped.  Inputs are checked here, once: a region that leaves the
+junction, and curves that meet at less than ``NARROW_ANGLE`` degrees there are reported with a
+warning: no triangle in such an angle can be well shaped.  A region tangent to the outer
+boundary or to an earlier region (a *wall*) follows the wall where it runs within
+``BOUNDARY_MERGE * h_min`` of it, near parallel, and meets it where it leaves that band: the
+cusps beside the contact, which no triangle fills, are bridged.  A user curve passing a fixed
+vertex (a region's corner, a corner of the boundary) within ``JUNCTION_MERGE * h_min`` is made
+to pass through it.  Inputs are checked here, once: a region that leaves the
 domain, two regions that overlap, a curve that leaves the domain or crosses itself each raise
 :class:`RegionError` or :class:`CurveError` naming the region or curve and a point.
 """
@@ -174,7 +178,8 @@ def build_constraints(
     curve_names, lines = _curves(curves)
     pieces: list[Piece] = []
     for k, (name, r) in enumerate(zip(names, doms, strict=True), start=1):
-        pieces += _region_pieces(domain, name, r, doms[: k - 1], k, h_min, eps)
+        pieces += _region_pieces(domain, name, r, dict(zip(names[: k - 1], doms[: k - 1], strict=True)),
+                                 k, h_min, eps)
     _check_overlaps(names, doms, h_min, eps)
     for c, (name, line) in enumerate(zip(curve_names, lines, strict=True)):
         pieces.append(_curve_piece(domain, name, line, c, h_min, eps))
@@ -243,9 +248,16 @@ def _curves(curves: CurvesLike | None) -> tuple[list[str], list[FloatArray]]:
 
 
 def _region_pieces(
-    domain: Domain, name: str, region: Domain, earlier: list[Domain], k: int, h_min: float, eps: float
+    domain: Domain, name: str, region: Domain, earlier: Mapping[str, Domain], k: int, h_min: float,
+    eps: float
 ) -> list[Piece]:
-    """The stretches of a region's boundary inside the domain and on no earlier region."""
+    """The stretches of a region's boundary inside the domain and on no earlier region.
+
+    "On" the outer boundary or an earlier region (a *wall*) means on it to ``eps``, or running
+    along it within ``BOUNDARY_MERGE * h_min`` and ``MERGE_ANGLE`` degrees of parallel: a region
+    tangent to a wall follows the wall over the stretch where no element could fit between
+    them, and its curve meets the wall where it leaves that band.
+    """
     try:
         loops = region.boundary_loops(grid_spacing(region.bbox, h_min))
     except GeometryError as exc:
@@ -273,6 +285,10 @@ def _region_pieces(
         loops = [_insert(Piece(lp, np.zeros(len(lp), dtype=bool), True, region.project, k), on, eps).points
                  if len(on := outer[_polyline_distance(outer, lp) <= near]) else lp for lp in loops]
         corners = np.concatenate([corners.reshape(-1, 2), outer])
+    walls = [domain, *earlier.values()]
+    wall_names = ["the boundary", *(f"region {nm!r}" for nm in earlier)]
+    for wall in walls:
+        loops = [_tangent_exits(wall, region, lp, merge, eps) for lp in loops]
     pieces = []
     for loop in loops:
         nxt = np.roll(loop, -1, axis=0)
@@ -280,29 +296,33 @@ def _region_pieces(
         if np.any(domain.sdf(mid) > eps):
             x, y = mid[np.argmax(domain.sdf(mid) > eps)]
             raise RegionError(f"region {name!r} extends outside the domain near ({x:.6g}, {y:.6g})")
-        # An edge along the outer boundary or along an earlier region is not a new curve.  Along
-        # the outer boundary "along" means within BOUNDARY_MERGE * h_min, ends included: a
-        # region tangent to the boundary comes within 1e-6 of it near the contact, and its
-        # nodes there made triangles of zero area with the boundary's.
-        d_loop = domain.sdf(loop)
-        hug = np.abs(d_loop) <= merge
-        dm = np.abs(domain.sdf(mid))
-        along = np.abs(np.roll(d_loop, -1) - d_loop) <= (
-            math.sin(math.radians(MERGE_ANGLE)) * np.hypot(*(nxt - loop).T))
-        drop = (dm <= eps) | ((dm <= merge) & hug & np.roll(hug, -1) & along)
-        merged = drop & (dm > eps)
-        if merged.any():
-            import warnings
+        # An edge along the outer boundary or along an earlier region is not a new curve.
+        # "Along" means on it, or within BOUNDARY_MERGE * h_min of it, ends included, and near
+        # parallel: a region tangent to a wall comes within 1e-6 of it near the contact, and its
+        # nodes there made triangles of zero area with the wall's.
+        drop = np.zeros(len(loop), dtype=bool)
+        wall_of = np.full(len(loop), -1)
+        edge_len = np.hypot(*(nxt - loop).T)
+        for w, (wall, wall_name) in enumerate(zip(walls, wall_names, strict=True)):
+            d_loop = wall.sdf(loop)
+            hug = np.abs(d_loop) <= merge
+            dm = np.abs(wall.sdf(mid))
+            along = np.abs(np.roll(d_loop, -1) - d_loop) <= math.sin(math.radians(MERGE_ANGLE)) * edge_len
+            near = (dm <= merge) & hug & np.roll(hug, -1) & along
+            new = ((dm <= eps) | near) & ~drop
+            wall_of[new] = w
+            drop |= new
+            merged = new & (dm > eps)
+            if merged.any():
+                import warnings
 
-            x, y = mid[np.argmax(merged)]
-            warnings.warn(
-                f"region {name!r} runs within {BOUNDARY_MERGE:g} h of the boundary near "
-                f"({x:.6g}, {y:.6g}) (tangent to it?): it follows the boundary there, and the "
-                "triangles in the narrow angle where it leaves cannot be well shaped",
-                stacklevel=4,
-            )
-        for e in earlier:
-            drop |= np.abs(e.sdf(mid)) <= eps
+                x, y = mid[np.argmax(merged)]
+                warnings.warn(
+                    f"region {name!r} runs within {BOUNDARY_MERGE:g} h of {wall_name} near "
+                    f"({x:.6g}, {y:.6g}) (tangent to it?): it follows {wall_name} there, and the "
+                    "triangles in the narrow angle where it leaves cannot be well shaped",
+                    stacklevel=4,
+                )
         fixed = np.zeros(len(loop), dtype=bool)
         if len(corners):
             from scipy.spatial import cKDTree
@@ -327,17 +347,88 @@ def _region_pieces(
             idx = order[np.arange(run, end + 1) % len(loop)]  # end edge's far vertex included
             f = fixed[idx].copy()
             f[[0, -1]] = True
-            pts = loop[idx]
-            # An end within the merge distance of the outer boundary (where a tangent stretch
-            # was dropped) is put on it: the junction joins the boundary.
-            ends = np.array([0, len(pts) - 1])
-            snap = ends[hug[idx[ends]] & (np.abs(domain.sdf(pts[ends])) > eps)]
-            if len(snap):
-                pts = pts.copy()
-                pts[snap] = domain.project(pts[snap])
+            pts = loop[idx].copy()
+            # An end within the merge distance of the wall along which the edge beyond it was
+            # dropped (a tangent stretch) is put on that wall: the junction joins it.
+            for e, beyond in ((0, order[(run - 1) % len(loop)]), (len(pts) - 1, order[end % len(loop)])):
+                wall = walls[wall_of[beyond]]
+                gap = abs(float(wall.sdf(pts[e:e + 1])[0]))
+                if eps < gap <= merge:
+                    pts[e] = wall.project(pts[e:e + 1])[0]
             pieces.append(Piece(pts, f, False, region.project, k))
             run = end
     return pieces
+
+
+#: Bisections that find where an edge leaving the boundary tangentially leaves the merge band.
+EXIT_BISECTIONS = 50
+#: ... an edge that leaves within this many degrees of the wall's tangent at the vertex.
+EXIT_ANGLE = 2.0
+
+
+def _tangent_exits(domain: Domain, region: Domain, loop: FloatArray, merge: float, eps: float
+                   ) -> FloatArray:
+    """The region's loop with a vertex added on each edge that leaves the outer boundary at one
+    of its vertices within ``MERGE_ANGLE`` of tangent, where the edge leaves the band of width
+    ``merge`` along the boundary.
+
+    A rectangle's corner touching a circular part of the boundary, its side tangent to the
+    circle there, leaves a cusp of zero angle between side and circle, which no triangle fills:
+    63 segments of the side were lost (found by fuzzing).  The side's vertices are far from the
+    boundary, so no edge lay within the band, to be merged into the boundary as a tangent
+    stretch is.  With the band's exit a vertex, the stretch before it is such an edge: the
+    region follows the boundary up to the exit, and its side meets the boundary there.
+    """
+    d = domain.sdf(loop)
+    on = np.flatnonzero(np.abs(d) <= eps)
+    if not len(on):
+        return loop
+    n = len(loop)
+    sin_a = math.sin(math.radians(MERGE_ANGLE))
+    # Points along an edge from its vertex on the boundary: geometric steps (a tangent side
+    # leaves the band at ~sqrt(2 R merge), a fraction of the edge), then bisection.
+    steps = np.geomspace(1e-9, 1.0, 64)
+    keys: list[float] = []
+    points: list[FloatArray] = []
+    for i in on.tolist():
+        for far, edge in (((i + 1) % n, i), ((i - 1) % n, (i - 1) % n)):
+            if abs(d[far]) <= merge:
+                continue  # the whole edge is in the band: the merge test decides on it
+            v, w = loop[i], loop[far]
+
+            def gap(t: FloatArray, v: FloatArray = v, w: FloatArray = w) -> tuple[FloatArray, FloatArray]:
+                q = region.project(v + t[:, None] * (w - v))
+                return q, np.abs(domain.sdf(q))
+
+            q, g = gap(steps)
+            out = np.flatnonzero(g > merge)
+            if not len(out) or out[0] == 0:
+                continue
+            lo, hi = steps[out[0] - 1], steps[out[0]]
+            for _ in range(EXIT_BISECTIONS):
+                mid = 0.5 * (lo + hi)
+                if gap(np.array([mid]))[1][0] <= merge:
+                    lo = mid
+                else:
+                    hi = mid
+            exit_point = gap(np.array([lo]))[0][0]
+            if merge > sin_a * float(np.hypot(*(exit_point - v))):
+                continue  # the edge leaves at an angle: a junction at the vertex, as it is
+            # Tangent at the vertex (the gap grows as the square of the distance), not a
+            # crossing at a small angle (as the distance): such a region meets the wall at
+            # that angle, and bridging the first merge-wide stretch would leave a sliver of
+            # region beyond it narrower still (a polygon's side 8.5 degrees off a circle;
+            # found by fuzzing).
+            t_near = min(1.0, merge / max(float(np.hypot(*(w - v))), 1e-300))
+            if gap(np.array([t_near]))[1][0] > math.sin(math.radians(EXIT_ANGLE)) * merge:
+                continue
+            points.append(exit_point)
+            keys.append(edge + (lo if edge == i else 1.0 - lo))
+    if not points:
+        return loop
+    order = np.argsort(np.concatenate([np.arange(n, dtype=float), keys]), kind="stable")
+    out_loop: FloatArray = np.concatenate([loop, np.array(points)])[order]
+    return out_loop
 
 
 def _check_region_edges(domain: Domain, name: str, region: Domain, loops: list[FloatArray],
@@ -375,8 +466,12 @@ def _check_region_edges(domain: Domain, name: str, region: Domain, loops: list[F
 
 
 def _check_overlaps(names: list[str], doms: list[Domain], h_min: float, eps: float) -> None:
-    """Two regions overlap when a boundary vertex of one lies strictly inside the other."""
-    loops = [np.concatenate(d.boundary_loops(grid_spacing(d.bbox, h_min))) for d in doms]
+    """Two regions overlap when a point of one's boundary lies strictly inside the other: its
+    vertices and points at most h_min / 2 apart along its edges (two boxes crossing like a
+    plus sign have no vertex inside each other; found by fuzzing, meshed with the tags of one
+    of them in the overlap)."""
+    loops = [np.concatenate([_densified(lp, 0.5 * h_min)
+                             for lp in d.boundary_loops(grid_spacing(d.bbox, h_min))]) for d in doms]
     for i in range(len(doms)):
         for j in range(len(doms)):
             if i == j:
@@ -387,6 +482,17 @@ def _check_overlaps(names: list[str], doms: list[Domain], h_min: float, eps: flo
                 x, y = loops[i][np.argmax(deep)]
                 a, b = sorted((names[i], names[j]), key=names.index)
                 raise RegionError(f"regions {a!r} and {b!r} overlap near ({x:.6g}, {y:.6g})")
+
+
+def _densified(loop: FloatArray, spacing: float) -> FloatArray:
+    """A closed polyline's vertices and points along its edges at most ``spacing`` apart."""
+    nxt = np.roll(loop, -1, axis=0)
+    n = np.maximum(1, np.ceil(np.hypot(*(nxt - loop).T) / spacing)).astype(int)
+    n = np.minimum(n, 10_000)
+    seg = np.repeat(np.arange(len(loop)), n)
+    t = (np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
+    out: FloatArray = loop[seg] + t[:, None] * (nxt - loop)[seg]
+    return out
 
 
 def _curve_piece(domain: Domain, name: str, line: FloatArray, c: int, h_min: float, eps: float
@@ -596,6 +702,7 @@ def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
     fixed vertex is that vertex), and into a user curve the other pieces' fixed vertices
     within ``merge`` of it (:func:`_near_misses`)."""
     extra: list[list[FloatArray]] = _near_misses(pieces, eps, merge)
+    fixed_pts = np.concatenate([p.points[p.fixed] for p in pieces] + [np.empty((0, 2))])
     # Each crossing once, with its pair of pieces and of segments.
     crossings: list[FloatArray] = []
     tags: list[tuple[int, int, int, int]] = []
@@ -613,8 +720,15 @@ def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
                 hit = _segment_hits(ai[s:s + step], bi[s:s + step], aj, bj, eps)
                 for r, c in np.argwhere(hit).tolist():
                     x = _intersection(ai[s + r], bi[s + r], aj[c], bj[c])
-                    for _ in range(CROSSING_ITERATIONS):
-                        x = pj.project(pi.project(x[None, :]))[0]
+                    at = fixed_pts[np.hypot(*(fixed_pts - x).T) <= 10 * eps]
+                    if len(at):
+                        # A piece ending there (a tangent region's junction put on the wall it
+                        # left, off its own curve): the crossing is that vertex, not where
+                        # alternating projections between the two curves drift to.
+                        x = at[0]
+                    else:
+                        for _ in range(CROSSING_ITERATIONS):
+                            x = pj.project(pi.project(x[None, :]))[0]
                     extra[i].append(x)
                     extra[j].append(x)
                     crossings.append(x)
@@ -669,19 +783,20 @@ def _merged_junctions(fixed: FloatArray, crossings: list[FloatArray], tags: list
 
 def _near_misses(pieces: list[Piece], eps: float, merge: float) -> list[list[FloatArray]]:
     """For each piece, the fixed vertices of the other pieces (corners, end points, junctions)
-    within ``merge`` of it but not on it, if it is a user curve.
+    within ``merge`` of it but not on it: for a user curve, any; for a region's boundary,
+    those on the region's true curve.
 
     A curve drawn past a region's corner, or ending next to another curve, closer than
     ``merge`` (JUNCTION_MERGE * h_min) without touching it: no element can resolve the gap,
     and the two fixed nodes that close lost the curve's segment between them (found by
     fuzzing: a polyline passing 7e-5 and 9e-4 from a region's corner, h = 0.08-0.09).  The curve
     is made to pass through the vertex instead, which moves it by less than ``merge``.  Region
-    boundaries are not bent: their nodes slide on the region's own boundary.
+    boundaries are not bent: their nodes slide on the region's own boundary, and a vertex is
+    inserted into one only where it lies on that boundary (where a region tangent to it
+    leaves it: :func:`_region_pieces`).
     """
     out: list[list[FloatArray]] = [[] for _ in pieces]
     for i, pi in enumerate(pieces):
-        if pi.owner >= 0:
-            continue
         others = [pj.points[pj.fixed] for j, pj in enumerate(pieces) if j != i]
         f = np.concatenate(others) if others else np.empty((0, 2))
         lo, hi = pi.points.min(axis=0) - merge, pi.points.max(axis=0) + merge
@@ -692,9 +807,28 @@ def _near_misses(pieces: list[Piece], eps: float, merge: float) -> list[list[Flo
         # In chunks of about 2e6 vertex-segment pairs (a digitised fault and a coastline's
         # corners would not fit at once).
         step = max(1, 2_000_000 // max(len(a), 1))
-        d = np.concatenate([_segment_feet(f[s:s + step], a, b)[1].min(axis=1)
-                            for s in range(0, len(f), step)])
-        out[i] += list(f[(d > eps) & (d <= merge)])
+        d_parts, foot_parts = [], []
+        for s in range(0, len(f), step):
+            t, dist = _segment_feet(f[s:s + step], a, b)
+            k = np.argmin(dist, axis=1)
+            rows = np.arange(len(k))
+            d_parts.append(dist[rows, k])
+            foot_parts.append(a[k] + t[rows, k][:, None] * (b - a)[k])
+        d, foot = np.concatenate(d_parts), np.concatenate(foot_parts)
+        # Within eps of a segment but off it, a vertex is no crossing (the crossing test
+        # finds segments that meet, or overlap when collinear), so it is taken here too; one
+        # at a vertex of the piece is that vertex.
+        from scipy.spatial import cKDTree
+
+        take = (d <= merge) & (cKDTree(pi.points).query(f)[0] > 10 * eps)
+        if pi.owner >= 0:
+            # A region's boundary takes only the vertices on its own stretch of its true curve
+            # (a junction put on a circle where a tangent region leaves it lies off the
+            # circle's chords by up to their sagitta): where the nearest point of the piece's
+            # polyline projects onto the curve.  Another region's corner next to a side is no
+            # junction on it, nor a vertex on another stretch of the curve.
+            take &= np.hypot(*(pi.project(foot) - f).T) <= 10 * eps
+        out[i] += list(f[take])
     return out
 
 
