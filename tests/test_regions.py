@@ -449,6 +449,10 @@ def test_self_crossing_curve():
         injmesh.generate(SQUARE, 0.1, curves={"bow": bow})
     with pytest.raises(CurveError, match="crosses itself"):  # folds back on itself
         injmesh.generate(SQUARE, 0.1, curves={"fold": [(0.2, 0.5), (0.8, 0.5), (0.4, 0.5)]})
+    # ... nearly: 0.15 degrees between its sides (found by fuzzing: triangles of zero area).
+    fold = [(0.7, 0.55), (0.68, 0.5), (0.21, 0.4967), (0.67, 0.4987)]
+    with pytest.raises(CurveError, match=r"at \(0\.21, 0\.4967\): its two sides there are 0\.15 degrees"):
+        injmesh.generate(SQUARE, 0.05, curves={"fold": fold})
 
 
 def test_malformed_curves_and_regions():
