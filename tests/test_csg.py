@@ -264,6 +264,10 @@ def test_hole_far_below_h_is_reported_not_lost_silently() -> None:
     lambda: Rectangle((0, 0), (1, 1)) & Rectangle((1, 0), (2, 1)),  # boxes share an edge only
     lambda: (Polygon([(0, 0.8), (0.3, 0.9), (0.1, 1.0)]) - Circle((0.2, 0.1), 0.4))
     & Circle((0.7, 0.3), 0.2),  # found by fuzzing: a reshape error from inside the tracing grid
+    # A difference removing all of a rectangle with two sides in common (found by fuzzing):
+    # min/max d is zero along those sides, which the stages took for a domain of no width.
+    lambda: Rectangle((0.625, 0.75), (0.875, 0.875)) - Rectangle((0.25, 0.75), (0.875, 0.875)),
+    lambda: Circle((0, 0), 1) & (Rectangle((2, -1), (3, 1)) | Circle((0, 3), 1)),  # boxes overlap
 ])
 def test_empty_intersection_is_a_clear_error(make) -> None:
     """An intersection whose operands' boxes do not overlap has a box of no area: refused up

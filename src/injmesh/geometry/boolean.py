@@ -38,9 +38,23 @@ if TYPE_CHECKING:
 logger = logging.getLogger(__name__)
 
 
+class EmptyResult(Exception):
+    """The set operation leaves nothing: no piece of any operand bounds the result."""
+
+
 def boolean_brep(expr: Domain) -> BRep | None:
-    """The exact B-rep of a set operation whose leaves are all B-reps, or None when the result
-    is empty or its boundary cannot be chained into loops (the caller keeps the min/max d)."""
+    """The exact B-rep of a set operation whose leaves are all B-reps, or None when its
+    boundary cannot be chained into loops (the caller keeps the min/max d).
+
+    Raises
+    ------
+    EmptyResult
+        No piece of any operand has the result on one side only: the result is empty (a
+        bounded non-empty set has a boundary, made of pieces of its operands).  Its min/max d
+        can still be zero along edges the operands share, which looked like a domain of zero
+        width to the stages (found by fuzzing: a difference removing all of a rectangle with
+        two sides in common).
+    """
     from .csg import _Combination
 
     assert isinstance(expr, _Combination)
@@ -86,7 +100,7 @@ def boolean_brep(expr: Domain) -> BRep | None:
     right = _member(expr, mid - probe * normal + origin)
     on = left != right
     if not on.any():
-        return None
+        raise EmptyResult
     flip = right & ~left
     s0, s1, sc, ssw, v0, v1, mid = (a[on] for a in (s0, s1, sc, ssw, v0, v1, mid))
     flip = flip[on]

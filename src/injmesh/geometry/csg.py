@@ -33,6 +33,7 @@ class _Combination(Domain):
         self.b = b
         self._corners: FloatArray | None = None
         self._exact: object = _UNSET
+        self._empty = False
 
     def __repr__(self) -> str:
         return f"({self.a!r} {self.symbol} {self.b!r})"
@@ -56,11 +57,21 @@ class _Combination(Domain):
         (BRep(<1 loops, 6 segments, 0 arcs>), 6)
         """
         if self._exact is _UNSET:
-            from .boolean import boolean_brep
+            from .boolean import EmptyResult, boolean_brep
 
             leaves = self.leaves()
-            self._exact = boolean_brep(self) if all(isinstance(leaf, BRep) for leaf in leaves) else None
+            try:
+                self._exact = boolean_brep(self) if all(isinstance(leaf, BRep) for leaf in leaves) else None
+            except EmptyResult:
+                self._exact, self._empty = None, True
         return self._exact  # type: ignore[return-value]
+
+    @property
+    def is_empty(self) -> bool:
+        """True when the operands are B-reps and the result is known to be empty (no piece of
+        any operand bounds it); False otherwise, including when that cannot be decided."""
+        self.exact_brep()
+        return self._empty
 
     @property
     def exact_distance(self) -> bool:  # type: ignore[override]

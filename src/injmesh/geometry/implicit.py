@@ -145,6 +145,10 @@ def _check_extent(domain: Domain) -> None:
         raise GeometryError(
             f"the domain is empty: its bounding box ({x0:.6g}, {y0:.6g}, {x1:.6g}, {y1:.6g}) has "
             "no area (an intersection of shapes that do not overlap?)")
+    if getattr(domain, "is_empty", False) is True:
+        raise GeometryError(
+            f"the domain is empty: {domain!r} leaves nothing (shapes that do not overlap, or a "
+            "difference that removes all of a shape)")
 
 
 def as_domain(
