@@ -100,6 +100,20 @@ def test_tangent_circles() -> None:
 
 
 
+@pytest.mark.parametrize("h", [0.1, 0.05])
+def test_both_cusps_of_a_hole_tangent_inside_a_disc_are_bridged(h) -> None:
+    """A hole tangent inside a disc has two cusps.  The far side of the hole passes through the
+    disc's centre, whose nearest point on the circle was taken as the centre itself (gap 0):
+    with a rectangle far away among the operands (other local coordinates put the point
+    exactly on the centre) one cusp was not bridged and the mesh lost segments there (found
+    by fuzzing).  The rectangle changes nothing: both cusps are bridged either way."""
+    disc, hole = Circle((0.875, 0.75), 0.25), Circle((0.875, 0.625), 0.125)
+    with pytest.warns(UserWarning, match="cusp"):
+        mesh = injmesh.generate(disc - Rectangle((0.375, 0.25), (0.625, 0.5)) - hole, h)
+    assert mesh.stats.cleaning == {"cusps": 2}
+    assert mesh.quality().min() > 0.5
+
+
 def test_a_circle_tangent_to_a_side_at_its_corner_is_exact() -> None:
     """A circle touching a rectangle's side at the side's end, its corner: the tangent point,
     computed as two crossings ~5e-9 apart, split the side short of the corner, and the boundary

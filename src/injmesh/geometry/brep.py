@@ -572,7 +572,14 @@ def _foot_on_curve(q: FloatArray, b: BRep, j: int) -> FloatArray:
         t = float(np.dot(q - a, d) / max(float(np.dot(d, d)), 1e-300))
         return np.asarray(a + t * d)
     v = q - b._c[j]
-    return np.asarray(b._c[j] + b._r[j] * v / max(float(np.hypot(*v)), 1e-300))
+    norm = float(np.hypot(*v))
+    if norm == 0.0:
+        # The centre itself: every point of the circle is nearest, r away.  (As 0 / tiny it
+        # was the centre, a gap of 0, and a hole tangent inside a disc, whose far side passes
+        # through the disc's centre, was not bridged there when the coordinates put that point
+        # exactly on it; found by fuzzing.)
+        return np.asarray(b._c[j] + np.array([b._r[j], 0.0]))
+    return np.asarray(b._c[j] + b._r[j] * v / norm)
 
 
 def _on_piece(q: FloatArray, b: BRep, j: int) -> bool:
