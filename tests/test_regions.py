@@ -282,6 +282,24 @@ def test_tangent_regions_bridge_their_cusps_and_say_so(h):
     assert gaps.min() > 0.05 * h  # no two nodes the band apart
 
 
+@pytest.mark.parametrize("h", [0.05, 0.03])
+@pytest.mark.parametrize("box", [Rectangle((0.3, 0.2), (0.7, 0.5)), Rectangle((0.3, 0.2), (0.7, 1.0))])
+def test_a_hole_tangent_to_a_box_side_in_its_middle(box, h):
+    """A hole of the domain touching a box region's side in the side's middle: the side's
+    midpoint was on the boundary, so the whole side was taken for a stretch of boundary and
+    the box vanished from the tags (region area 0, no warning).  With the side running up to
+    the outer boundary (both its ends on the boundary, found by fuzzing), 63 of its segments
+    were lost.  The contact is a vertex now, and the side follows the hole within the band."""
+    domain = SQUARE - Circle((0.5, 0.7), 0.2)
+    region = box & domain
+    with pytest.warns(UserWarning, match="region 'box' runs within 0.05 h of the boundary"):
+        mesh = injmesh.generate(domain, h, regions={"box": region})
+    assert_valid_mesh(mesh, domain)
+    assert mesh.quality().min() > 0.2  # where the side leaves the hole: ~10 degrees
+    # (The region's arcs along the hole are chords of it in the mesh.)
+    assert mesh.region_areas()[1] == pytest.approx(region.exact_brep().area, rel=(h / 0.2) ** 2 / 8)
+
+
 @pytest.mark.parametrize("h", [0.05, 0.02])
 def test_a_box_corner_touching_the_boundary_tangentially(h):
     """A box whose corner touches a circular part of the boundary, its side tangent to the

@@ -292,7 +292,8 @@ def _region_pieces(
     walls = [domain, *earlier.values()]
     wall_names = ["the boundary", *(f"region {nm!r}" for nm in earlier)]
     for wall in walls:
-        loops = [_tangent_exits(wall, region, lp, merge, eps) for lp in loops]
+        loops = [_tangent_exits(wall, region, _touch_points(wall, region, lp, h_min, merge, eps), merge, eps)
+                 for lp in loops]
     pieces = []
     for loop in loops:
         nxt = np.roll(loop, -1, axis=0)
@@ -312,8 +313,12 @@ def _region_pieces(
             hug = np.abs(d_loop) <= merge
             dm = np.abs(wall.sdf(mid))
             along = np.abs(np.roll(d_loop, -1) - d_loop) <= math.sin(math.radians(MERGE_ANGLE)) * edge_len
-            near = (dm <= merge) & hug & np.roll(hug, -1) & along
-            new = ((dm <= eps) | near) & ~drop
+            # An edge on the wall has its ends near it too: a midpoint alone touching it (a
+            # hole tangent to a box's side at the side's middle) dropped the whole side, and
+            # the region vanished from the tags.
+            ends = hug & np.roll(hug, -1)
+            near = (dm <= merge) & ends & along
+            new = (((dm <= eps) & ends) | near) & ~drop
             wall_of[new] = w
             drop |= new
             merged = new & (dm > eps)
@@ -370,6 +375,63 @@ EXIT_BISECTIONS = 50
 EXIT_ANGLE = 2.0
 
 
+#: Ternary-search steps that find where an edge touches a wall between its vertices.
+TOUCH_STEPS = 60
+
+
+def _touch_points(wall: Domain, region: Domain, loop: FloatArray, h_min: float, merge: float, eps: float
+                  ) -> FloatArray:
+    """The region's loop with a vertex added where an edge touches ``wall`` (to ``eps``)
+    between its vertices: a circular hole of the domain tangent to a box's side in its middle,
+    a disc touching a box's side (found by fuzzing: degenerate triangles in the cusps on both
+    sides of the contact).  :func:`_tangent_exits` then bridges the cusps from that vertex.
+
+    Each edge is sampled every h_min / 4; a sample within ``merge`` of the wall, no farther
+    than its neighbours and not between two on it (an edge along the wall is the merge test's)
+    is refined by ternary search between its neighbours.
+    """
+    nxt = np.roll(loop, -1, axis=0)
+    n = len(loop)
+    count = np.minimum(np.ceil(np.hypot(*(nxt - loop).T) / (0.25 * h_min)).astype(int) + 1, 10_000)
+    edge = np.repeat(np.arange(n), count + 1)
+    first = np.repeat(np.cumsum(count + 1) - (count + 1), count + 1)
+    t = (np.arange(len(edge)) - first) / np.repeat(count, count + 1)
+    q = region.project(loop[edge] + t[:, None] * (nxt[edge] - loop[edge]))
+    g = np.abs(wall.sdf(q))
+    same_prev = np.r_[False, edge[1:] == edge[:-1]]
+    same_next = np.r_[edge[:-1] == edge[1:], False]
+    inner = same_prev & same_next  # samples strictly between an edge's ends
+    low = np.zeros(len(g), dtype=bool)
+    low[1:-1] = inner[1:-1] & (g[1:-1] <= merge) & (g[1:-1] <= g[:-2]) & (g[1:-1] <= g[2:]) & (
+        (g[:-2] > eps) | (g[2:] > eps))
+    keys: list[float] = []
+    points: list[FloatArray] = []
+    for k in np.flatnonzero(low).tolist():
+        e = int(edge[k])
+        v, w = loop[e], nxt[e]
+
+        def gap(tt: float, v: FloatArray = v, w: FloatArray = w) -> tuple[FloatArray, float]:
+            p = region.project((v + tt * (w - v))[None, :])
+            return p[0], float(np.abs(wall.sdf(p))[0])
+
+        lo, hi = float(t[k - 1]), float(t[k + 1])
+        for _ in range(TOUCH_STEPS):
+            m1, m2 = lo + (hi - lo) / 3, hi - (hi - lo) / 3
+            if gap(m1)[1] <= gap(m2)[1]:
+                hi = m2
+            else:
+                lo = m1
+        p, dist = gap(0.5 * (lo + hi))
+        if dist <= eps and min(np.hypot(*(p - v)), np.hypot(*(p - w))) > 10 * eps:
+            points.append(p)
+            keys.append(e + 0.5 * (lo + hi))
+    if not points:
+        return loop
+    order = np.argsort(np.concatenate([np.arange(n, dtype=float), keys]), kind="stable")
+    out: FloatArray = np.concatenate([loop, np.array(points)])[order]
+    return out
+
+
 def _tangent_exits(domain: Domain, region: Domain, loop: FloatArray, merge: float, eps: float
                    ) -> FloatArray:
     """The region's loop with a vertex added on each edge that leaves the outer boundary at one
@@ -396,8 +458,6 @@ def _tangent_exits(domain: Domain, region: Domain, loop: FloatArray, merge: floa
     points: list[FloatArray] = []
     for i in on.tolist():
         for far, edge in (((i + 1) % n, i), ((i - 1) % n, (i - 1) % n)):
-            if abs(d[far]) <= merge:
-                continue  # the whole edge is in the band: the merge test decides on it
             v, w = loop[i], loop[far]
 
             def gap(t: FloatArray, v: FloatArray = v, w: FloatArray = w) -> tuple[FloatArray, FloatArray]:
@@ -407,7 +467,7 @@ def _tangent_exits(domain: Domain, region: Domain, loop: FloatArray, merge: floa
             q, g = gap(steps)
             out = np.flatnonzero(g > merge)
             if not len(out) or out[0] == 0:
-                continue
+                continue  # the whole edge in the band (the merge test decides on it), or none
             lo, hi = steps[out[0] - 1], steps[out[0]]
             for _ in range(EXIT_BISECTIONS):
                 mid = 0.5 * (lo + hi)
