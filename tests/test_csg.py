@@ -89,6 +89,28 @@ def test_operands_touching_at_a_point() -> None:
     assert _has(u.corners(), (1, 1))
 
 
+@pytest.mark.parametrize("h", [0.2, 0.05])
+@pytest.mark.parametrize("shapes", [
+    (Rectangle((0, 0), (1, 1)), Rectangle((1, 1), (2, 2))),
+    (Rectangle((0, 0.125), (0.5, 0.25)), Rectangle((0.5, 0.25), (0.75, 0.375))),  # found by fuzzing
+    (Rectangle((0, 0), (1, 1)) - Circle((0, 1.5), 0.8), Rectangle((1, 1), (2, 2))),  # an arc beside
+])
+def test_operands_touching_at_a_point_mesh_validly(shapes, h) -> None:
+    """Two loops touching at a corner each had a node there; the triangulation kept one, and
+    the other loop's segments at the point were lost: every such union was an invalid mesh.
+    One node is shared now, with the segments of both loops at it."""
+    a, b = shapes
+    mesh = injmesh.generate(a | b, h)
+    assert_valid_mesh(mesh, a | b)
+    contact = np.array([1.0, 1.0]) if b.bbox[0] == 1 else np.array([0.5, 0.25])
+    at = np.flatnonzero(np.hypot(*(mesh.points - contact).T) < 1e-12)
+    assert len(at) == 1
+    # Four boundary segments meet there, two of each loop.
+    touching = np.any(mesh.boundary_edges == at[0], axis=1)
+    assert touching.sum() == 4 and sorted(mesh.boundary_tags[touching].tolist()) == [0, 0, 1, 1]
+    assert np.sum(mesh.quality() < 0.5) == 0
+
+
 def test_tangent_circles() -> None:
     u = Circle((0, 0), 1) | Circle((2, 0), 1)
     assert len(u.boundary_loops(0.05)) == 2

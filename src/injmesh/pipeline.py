@@ -367,14 +367,15 @@ def _injection(
     seconds: dict[str, float] = {}
     # Steps 1 and 2: boundary meshing and Advancing Node Injection.
     bnd, seeds, injected = _place_nodes(domain, h, fixed, max_nodes, callback, seconds, estimate)
-    points = np.concatenate([seeds, injected])
+    points, n_fixed, remap = _merge_touching(bnd, np.concatenate([seeds, injected]), len(seeds),
+                                             domain.diameter)
     t = time.perf_counter()
 
     # Step 3: Delaunay triangulation and attractive smoothing (Eq. 3.4).
     # Boundary nodes other than corners slide along the boundary between their neighbours.
     result = smooth(
-        domain, _capped(h, domain.diameter), points, n_fixed=len(seeds), sliding=_sliding(bnd),
-        walls=bnd.edges, smoothing=smoothing, max_iterations=max_iterations, callback=callback,
+        domain, _capped(h, domain.diameter), points, n_fixed=n_fixed, sliding=remap[_sliding(bnd)],
+        walls=remap[bnd.edges], smoothing=smoothing, max_iterations=max_iterations, callback=callback,
     )
     seconds["smoothing"] = time.perf_counter() - t
     edges, tags, defects = _checked_boundary(domain, bnd, result)
@@ -395,6 +396,38 @@ def _sliding(bnd: BoundaryMesh) -> NDArray[np.intp]:
     prev = np.empty(len(bnd.points), dtype=np.intp)
     prev[bnd.edges[:, 1]] = bnd.edges[:, 0]
     return np.stack([free_b, prev[free_b], bnd.edges[free_b, 1]], axis=1)
+
+
+def _merge_touching(
+    bnd: BoundaryMesh, points: FloatArray, n_fixed: int, diameter: float
+) -> tuple[FloatArray, int, NDArray[np.intp]]:
+    """The nodes for Step 3 with each point where boundary loops touch once, and the map from
+    the old node numbers to the new.
+
+    Loops that touch at a point (two rectangles corner to corner, ``a | b``) each have a
+    corner node there: Step 1 and the fronts of Step 2 follow each loop on its own, but the
+    triangulation keeps one of two coincident nodes, and the segments of the other loop at the
+    point were lost (every such union was an invalid mesh; found by fuzzing).  The later
+    duplicates of a boundary node (within ``10 * ON_BOUNDARY`` of the diameter, on another
+    loop) are dropped and their segments and neighbours point at the first.
+    """
+    from scipy.spatial import cKDTree
+
+    nb = len(bnd.points)
+    first = np.arange(len(points))
+    pairs = cKDTree(bnd.points).query_pairs(10 * tol.ON_BOUNDARY * diameter, output_type="ndarray")
+    if len(pairs):
+        pairs = pairs[bnd.node_loop[pairs[:, 0]] != bnd.node_loop[pairs[:, 1]]]
+    if not len(pairs):
+        return points, n_fixed, first
+    lo, hi = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
+    for a, b in sorted(zip(lo.tolist(), hi.tolist(), strict=True), key=lambda ab: ab[1]):
+        first[b] = min(first[b], first[a])
+    keep = first == np.arange(len(points))
+    new = np.cumsum(keep) - 1
+    remap = new[first]
+    assert not (~keep[nb:]).any()
+    return points[keep], n_fixed - int((~keep[:nb]).sum()), remap
 
 
 def _checked_boundary(
@@ -916,9 +949,12 @@ def _injection_with_curves(
             kernels = []
             break
         kernels.append(kb)
-    itf = Interfaces(ids[cm.edges], cm.edge_piece + 1, node_group, project, tuple(kernels), which)
+    points, n_fixed, remap = _merge_touching(bnd, points, len(seeds), diam)
+    group = np.zeros(n_fixed, dtype=np.intp)
+    group[remap[:len(seeds)]] = node_group
+    itf = Interfaces(remap[ids[cm.edges]], cm.edge_piece + 1, group, project, tuple(kernels), which)
     result = smooth(
-        domain, hc, points, n_fixed=len(seeds), sliding=np.concatenate(rows), walls=bnd.edges,
+        domain, hc, points, n_fixed=n_fixed, sliding=remap[np.concatenate(rows)], walls=remap[bnd.edges],
         smoothing=smoothing, max_iterations=max_iterations, callback=callback, interfaces=itf,
     )
     seconds["smoothing"] = time.perf_counter() - t
