@@ -485,11 +485,11 @@ def _touch_points(wall: Domain, region: Domain, loop: FloatArray, h_min: float, 
     return out
 
 
-def _tangent_exits(domain: Domain, region: Domain, loop: FloatArray, merge: float, eps: float
+def _tangent_exits(wall: Domain, region: Domain, loop: FloatArray, merge: float, eps: float
                    ) -> FloatArray:
-    """The region's loop with a vertex added on each edge that leaves the outer boundary at one
-    of its vertices within ``MERGE_ANGLE`` of tangent, where the edge leaves the band of width
-    ``merge`` along the boundary.
+    """The region's loop with a vertex added on each edge that leaves ``wall`` (the outer
+    boundary or an earlier region) at one of its vertices within ``EXIT_ANGLE`` of tangent,
+    where the edge leaves the band of width ``merge`` along the wall.
 
     A rectangle's corner touching a circular part of the boundary, its side tangent to the
     circle there, leaves a cusp of zero angle between side and circle, which no triangle fills:
@@ -498,7 +498,7 @@ def _tangent_exits(domain: Domain, region: Domain, loop: FloatArray, merge: floa
     stretch is.  With the band's exit a vertex, the stretch before it is such an edge: the
     region follows the boundary up to the exit, and its side meets the boundary there.
     """
-    d = domain.sdf(loop)
+    d = wall.sdf(loop)
     on = np.flatnonzero(np.abs(d) <= eps)
     if not len(on):
         return loop
@@ -515,7 +515,7 @@ def _tangent_exits(domain: Domain, region: Domain, loop: FloatArray, merge: floa
 
             def gap(t: FloatArray, v: FloatArray = v, w: FloatArray = w) -> tuple[FloatArray, FloatArray]:
                 q = region.project(v + t[:, None] * (w - v))
-                return q, np.abs(domain.sdf(q))
+                return q, np.abs(wall.sdf(q))
 
             q, g = gap(steps)
             out = np.flatnonzero(g > merge)
