@@ -425,10 +425,11 @@ def test_a_sliver_region_along_the_boundary_is_refused():
     merged into the boundary all round it vanished, or its leftovers were lost segments (found
     by fuzzing).  It is refused by name."""
     sliver = r"region 'strip' near \(0\.5, 0\.0003\) lies within 0\.05 h .* 0\.0006 wide"
-    with pytest.raises(RegionError, match=sliver):
+    with pytest.raises(RegionError, match=sliver), pytest.warns(UserWarning, match="runs within"):
         injmesh.generate(SQUARE, 0.06, regions={"strip": Rectangle((0.2, 0), (0.8, 0.0006))})
     # Two elements thick, it is meshed; the domain but for a sliver along one side is the domain.
-    mesh = injmesh.generate(SQUARE, 0.06, regions={"most": Rectangle((0, 0), (1, 0.9995))})
+    with pytest.warns(UserWarning, match="region 'most' runs within 0.05 h of the boundary"):
+        mesh = injmesh.generate(SQUARE, 0.06, regions={"most": Rectangle((0, 0), (1, 0.9995))})
     assert mesh.region_areas()[1] == pytest.approx(1.0, rel=1e-9)
     mesh = injmesh.generate(SQUARE, 0.06, regions={"strip": Rectangle((0.2, 0), (0.8, 0.06))})
     assert mesh.region_areas()[1] == pytest.approx(0.036, rel=1e-9)
