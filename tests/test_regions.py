@@ -408,6 +408,23 @@ def test_a_hole_inside_a_region_is_left_out_of_it():
     assert mesh.region_areas()[1] == pytest.approx(np.pi * (0.09 - 0.01), rel=1e-2)
 
 
+@pytest.mark.parametrize("regions, areas", [
+    ({"all": Rectangle((0, 0), (1, 1))}, [0.0, 1.0]),
+    ({"a": Rectangle((0, 0), (0.5, 1)), "b": Rectangle((0.5, 0), (1, 1))}, [0.0, 0.5, 0.5]),
+    ({"a": SQUARE - Circle((0.5, 0.5), 0.2), "b": Circle((0.5, 0.5), 0.2)},
+     [0.0, 1 - np.pi * 0.04, np.pi * 0.04]),
+])
+def test_regions_covering_the_whole_domain(regions, areas):
+    """Materials that partition the domain leave no rest: the empty difference, refused as a
+    domain of its own, must not reach the regions' feature size (a GeometryError for every
+    partition, briefly)."""
+    mesh = injmesh.generate(SQUARE, 0.1, regions=regions)
+    assert_valid_mesh(mesh, SQUARE)
+    # (The disc's polygon of chords falls short by ~(h/r)^2/6.)
+    assert mesh.region_areas() == pytest.approx(areas, abs=0.01)
+    assert mesh.region_areas()[0] == 0.0
+
+
 def test_overlapping_regions():
     with pytest.raises(RegionError, match=r"regions 'a' and 'b' overlap near \("):
         injmesh.generate(SQUARE, 0.1, regions={"a": Circle((0.4, 0.5), 0.2), "b": Circle((0.6, 0.5), 0.2)})

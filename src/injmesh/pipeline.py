@@ -1146,7 +1146,9 @@ def _region_features(domain: Domain, h: SizeFunction, cons: Constraints, layers:
     rest: Domain = domain
     for r in cons.regions:
         rest = rest - r
-    parts = (*cons.regions, rest)
+    # Regions that cover the whole domain (a partition into materials) leave no rest: an empty
+    # set operation, which as a domain of its own would be refused.
+    parts = (*cons.regions, *(() if getattr(rest, "is_empty", False) is True else (rest,)))
     if all(exact_boundary(part) is not None for part in parts):
         return _gap_cones(domain, h, parts, float(layers))
     # A part on which no two walls face each other within a few h (a circle several h across)
