@@ -425,6 +425,23 @@ def test_regions_covering_the_whole_domain(regions, areas):
     assert mesh.region_areas()[0] == 0.0
 
 
+@pytest.mark.parametrize("h", [0.05, 0.03])
+@pytest.mark.parametrize("whole", [False, True])
+def test_a_region_over_a_point_where_the_domain_touches_itself(whole, h):
+    """A rectangle and a disc touching its side: cleaning bridges the two cusps, adding each
+    sliver's tip to the domain.  A region covering both sides kept its own cusps, now inside
+    the domain, with degenerate triangles and lost segments (found by fuzzing).  The region is
+    bridged as the domain is."""
+    domain = Rectangle((0.25, 0.25), (0.75, 0.5)) | Circle((0.5, 0), 0.25)
+    region = domain if whole else Circle((0.5, 0.375), 0.375) & domain
+    with pytest.warns(UserWarning, match="cusp"):
+        mesh = injmesh.generate(domain, h, regions={"r": region})
+    assert mesh.stats.cleaning == {"cusps": 2}
+    assert mesh.quality().min() > 0.5
+    expected = domain.exact_brep().area if whole else region.exact_brep().area
+    assert mesh.region_areas()[1] == pytest.approx(expected, rel=(h / 0.25) ** 2 / 4)
+
+
 def test_overlapping_regions():
     with pytest.raises(RegionError, match=r"regions 'a' and 'b' overlap near \("):
         injmesh.generate(SQUARE, 0.1, regions={"a": Circle((0.4, 0.5), 0.2), "b": Circle((0.6, 0.5), 0.2)})

@@ -6,7 +6,7 @@ import logging
 import math
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any, Literal
 
@@ -245,9 +245,12 @@ def generate(
                 raise ValueError("h0 and seed apply to method='distmesh' only")
             if smoothing not in ("hybrid", "attractive"):
                 raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
+            raw = dom
             dom, cleaning, known = _clean(dom, h, min_feature)
             constraints = None
             if regions is not None or curves is not None:
+                if cleaning.get("cusps") and isinstance(regions, Mapping):
+                    regions = _bridged_regions(raw, h, known, regions)
                 estimate = known.of(dom, h)
                 if estimate is None:
                     estimate = estimate_nodes(dom, h.restricted(dom))
@@ -396,6 +399,31 @@ def _sliding(bnd: BoundaryMesh) -> NDArray[np.intp]:
     prev = np.empty(len(bnd.points), dtype=np.intp)
     prev[bnd.edges[:, 1]] = bnd.edges[:, 0]
     return np.stack([free_b, prev[free_b], bnd.edges[free_b, 1]], axis=1)
+
+
+def _bridged_regions(raw: Domain, h: SizeFunction, known: _Estimate, regions: Mapping[str, Any]
+                     ) -> dict[str, Any]:
+    """The regions with their cusps bridged as the domain's were (the same tolerance).
+
+    Where the domain touches itself tangentially (a disc touching a rectangle's side), cleaning
+    bridges the cusps, which adds the tip of each sliver to the domain.  A region covering both
+    sides kept its own cusp there, now inside the domain, and its pieces along it were lost
+    segments (found by fuzzing).  Bridged the same way, the region takes the sliver's tip too.
+    """
+    if h.constant is not None:
+        h_min = min(h.constant, raw.diameter)
+    else:
+        h_min = (known.of(raw, h) or estimate_nodes(raw, h.restricted(raw)))[0]
+    out: dict[str, Any] = {}
+    for name, r in regions.items():
+        exact = r.exact_brep() if isinstance(r, Domain) and hasattr(r, "exact_brep") else (
+            r if isinstance(r, BRep) else None)
+        if isinstance(exact, BRep):
+            bridged, report = exact.cleaned(CLEAN * h_min)
+            out[name] = bridged if report.get("cusps") else r
+        else:
+            out[name] = r
+    return out
 
 
 def _merge_touching(
