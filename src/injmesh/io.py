@@ -297,7 +297,10 @@ def _write_meshio(meshio: Any, mesh: Mesh, tmp: Path, fmt: str) -> None:
         cells.append(("line", curve_edges[curve_tags == c]))
         block_tags.append(tag)
         group_names[tag] = (name, 1)
-    keep = [i for i, (_, data) in enumerate(cells) if len(data) or i == 0]
+    # Empty blocks are left out (meshio's MSH 4.1 and VTU writers fail on them): a line block
+    # with no edge, or the rest of a domain that regions partition.  The domain's own triangle
+    # block is the one tagged ``domain_tag``, wherever it is.
+    keep = [i for i, (_, data) in enumerate(cells) if len(data)]
     cells, block_tags = [cells[i] for i in keep], [block_tags[i] for i in keep]
     per_cell = [
         np.full(len(c), t, dtype=np.int64) for (_, c), t in zip(cells, block_tags, strict=True)
@@ -305,8 +308,8 @@ def _write_meshio(meshio: Any, mesh: Mesh, tmp: Path, fmt: str) -> None:
 
     if fmt in ("gmsh", "gmsh22"):
         # Entities: the 2-D surface 1 and one 1-D curve per boundary component.
-        geometrical = [np.full(len(c[1]), 1 if i == 0 else t, dtype=np.int64)
-                       for i, (c, t) in enumerate(zip(cells, block_tags, strict=True))]
+        geometrical = [np.full(len(c[1]), 1 if c[0] == "triangle" and t == domain_tag else t, dtype=np.int64)
+                       for c, t in zip(cells, block_tags, strict=True)]
         field_data = {"domain": np.array([domain_tag, 2])}
         field_data.update({names[t]: np.array([t + 1, 1]) for t in loop_tags})
         field_data.update({name: np.array([t, dim]) for t, (name, dim) in group_names.items()
@@ -320,16 +323,18 @@ def _write_meshio(meshio: Any, mesh: Mesh, tmp: Path, fmt: str) -> None:
                 dim_tags[edges[:, 0], 0] = 1
                 dim_tags[edges[:, 0], 1] = tags + 1
             # Interior nodes of a region lie on its own surface.
-            for (kind, data), tag in zip(cells[1:], block_tags[1:], strict=True):
-                if kind == "triangle":
+            for (kind, data), tag in zip(cells, block_tags, strict=True):
+                if kind == "triangle" and tag != domain_tag:
                     inner = np.unique(data)
                     inner = inner[dim_tags[inner, 0] == 2]
                     dim_tags[inner, 1] = tag
             # meshio writes an entity's physical group only if some node lies on the entity.
+            # (A block with no cell has no node to give: the rest of a domain that regions
+            # partition, whose triangle block is kept empty.)
             for (_, data), tag in zip(cells, block_tags, strict=True):
                 dim = 2 if data.shape[1] == 3 else 1
                 entity = 1 if dim == 2 and tag == domain_tag else tag
-                if not np.any((dim_tags[:, 0] == dim) & (dim_tags[:, 1] == entity)):
+                if len(data) and not np.any((dim_tags[:, 0] == dim) & (dim_tags[:, 1] == entity)):
                     dim_tags[data[0, 0]] = (dim, entity)
             # Nodes are stored entity by entity; number them in that order so that the node
             # tags in the file run 1, 2, 3, ... and every reader agrees on the numbering.  For
