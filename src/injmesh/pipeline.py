@@ -414,11 +414,12 @@ def _bridged_regions(raw: Domain, h: SizeFunction, known: _Estimate, regions: Ma
         h_min = min(h.constant, raw.diameter)
     else:
         h_min = (known.of(raw, h) or estimate_nodes(raw, h.restricted(raw)))[0]
+    from .sizing.background import exact_boundary
+
     out: dict[str, Any] = {}
     for name, r in regions.items():
-        exact = r.exact_brep() if isinstance(r, Domain) and hasattr(r, "exact_brep") else (
-            r if isinstance(r, BRep) else None)
-        if isinstance(exact, BRep):
+        exact = exact_boundary(r) if isinstance(r, Domain) else None
+        if exact is not None:
             bridged, report = exact.cleaned(CLEAN * h_min)
             out[name] = bridged if report.get("cusps") else r
         else:

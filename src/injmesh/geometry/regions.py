@@ -390,9 +390,9 @@ EXIT_ANGLE = 2.0
 
 def _mean_width(loop: FloatArray) -> float:
     """Twice the area of a closed polyline over its length: the width of a strip."""
-    nxt = np.roll(loop, -1, axis=0)
-    area = 0.5 * abs(float(np.sum(loop[:, 0] * nxt[:, 1] - nxt[:, 0] * loop[:, 1])))
-    return 2.0 * area / max(float(np.sum(np.hypot(*(nxt - loop).T))), 1e-300)
+    from .primitives import _perimeter, _shoelace
+
+    return 2.0 * abs(_shoelace(loop)) / max(_perimeter(loop), 1e-300)
 
 
 def _drop_slivers(drop: BoolArray, wall_of: NDArray[np.intp], hugs: BoolArray, mids_in: BoolArray) -> None:
@@ -478,11 +478,7 @@ def _touch_points(wall: Domain, region: Domain, loop: FloatArray, h_min: float, 
         if dist <= eps and min(np.hypot(*(p - v)), np.hypot(*(p - w))) > 10 * eps:
             points.append(p)
             keys.append(e + 0.5 * (lo + hi))
-    if not points:
-        return loop
-    order = np.argsort(np.concatenate([np.arange(n, dtype=float), keys]), kind="stable")
-    out: FloatArray = np.concatenate([loop, np.array(points)])[order]
-    return out
+    return _with_vertices(loop, keys, points)
 
 
 def _tangent_exits(wall: Domain, region: Domain, loop: FloatArray, merge: float, eps: float
@@ -541,11 +537,7 @@ def _tangent_exits(wall: Domain, region: Domain, loop: FloatArray, merge: float,
                 continue
             points.append(exit_point)
             keys.append(edge + (lo if edge == i else 1.0 - lo))
-    if not points:
-        return loop
-    order = np.argsort(np.concatenate([np.arange(n, dtype=float), keys]), kind="stable")
-    out_loop: FloatArray = np.concatenate([loop, np.array(points)])[order]
-    return out_loop
+    return _with_vertices(loop, keys, points)
 
 
 def _check_region_edges(domain: Domain, name: str, region: Domain, loops: list[FloatArray],
@@ -587,7 +579,9 @@ def _check_overlaps(names: list[str], doms: list[Domain], h_min: float, eps: flo
     vertices and points at most h_min / 2 apart along its edges (two boxes crossing like a
     plus sign have no vertex inside each other; found by fuzzing, meshed with the tags of one
     of them in the overlap)."""
-    loops = [np.concatenate([_densified(lp, 0.5 * h_min)
+    from ..kernels.raster import densify
+
+    loops = [np.concatenate([densify(np.ascontiguousarray(lp, dtype=np.float64), 0.5 * h_min)
                              for lp in d.boundary_loops(grid_spacing(d.bbox, h_min))]) for d in doms]
     for i in range(len(doms)):
         for j in range(len(doms)):
@@ -599,17 +593,6 @@ def _check_overlaps(names: list[str], doms: list[Domain], h_min: float, eps: flo
                 x, y = loops[i][np.argmax(deep)]
                 a, b = sorted((names[i], names[j]), key=names.index)
                 raise RegionError(f"regions {a!r} and {b!r} overlap near ({x:.6g}, {y:.6g})")
-
-
-def _densified(loop: FloatArray, spacing: float) -> FloatArray:
-    """A closed polyline's vertices and points along its edges at most ``spacing`` apart."""
-    nxt = np.roll(loop, -1, axis=0)
-    n = np.maximum(1, np.ceil(np.hypot(*(nxt - loop).T) / spacing)).astype(int)
-    n = np.minimum(n, 10_000)
-    seg = np.repeat(np.arange(len(loop)), n)
-    t = (np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
-    out: FloatArray = loop[seg] + t[:, None] * (nxt - loop)[seg]
-    return out
 
 
 def _curve_piece(domain: Domain, name: str, line: FloatArray, c: int, h_min: float, eps: float
@@ -664,22 +647,13 @@ def _through_corners(domain: Domain, line: FloatArray, closed: bool, eps: float,
         a, b = a[:-1], b[:-1]
     if not len(a):
         return line
-    # In chunks of about 2e6 corner-segment pairs (a digitised fault across a coastline).
-    step = max(1, 2_000_000 // len(a))
-    seg_parts, t_parts, d_parts = [], [], []
-    for s in range(0, len(corners), step):
-        t, dist = _segment_feet(corners[s:s + step], a, b)
-        k = np.argmin(dist, axis=1)
-        rows = np.arange(len(k))
-        seg_parts.append(k)
-        t_parts.append(t[rows, k])
-        d_parts.append(dist[rows, k])
-    seg, tt, d = np.concatenate(seg_parts), np.concatenate(t_parts), np.concatenate(d_parts)
+    seg, tt, d = _nearest_segment(corners, a, b)
     near = (d > eps) & (d <= merge)
     if not near.any():
         return line
     out = line.copy()
-    extra, keys = [], []
+    extra: list[FloatArray] = []
+    keys: list[float] = []
     for c, k, t in zip(corners[near], seg[near], tt[near], strict=True):
         # The segment's end nearer the corner: moved onto it when within ``merge`` (a vertex
         # next to the corner would leave a segment no element resolves), else the corner is
@@ -690,10 +664,7 @@ def _through_corners(domain: Domain, line: FloatArray, closed: bool, eps: float,
         else:
             extra.append(c)
             keys.append(k + float(np.clip(t, 1e-9, 1 - 1e-9)))
-    if extra:
-        order = np.argsort(np.concatenate([np.arange(len(out), dtype=float), keys]), kind="stable")
-        out = np.concatenate([out, np.array(extra)])[order]
-    return out
+    return _with_vertices(out, keys, extra)
 
 
 #: The inside test of a curve bisects its samples down to this fraction of h_min (below which
@@ -861,8 +832,7 @@ def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
     # pieces' fixed vertices first, so that a crossing next to one becomes it.
     # (The near misses are fixed vertices, and the crossings are listed once: every point of
     # ``extra`` is among these.)
-    fixed = np.concatenate([p.points[p.fixed] for p in pieces] + [np.empty((0, 2))])
-    allx = _merged_junctions(fixed, crossings, tags, merge, 10 * eps) if any(extra) else None
+    allx = _merged_junctions(fixed_pts, crossings, tags, merge, 10 * eps) if any(extra) else None
     out = []
     for p, more in zip(pieces, extra, strict=True):
         if not more or allx is None:
@@ -926,17 +896,8 @@ def _near_misses(pieces: list[Piece], eps: float, merge: float) -> list[list[Flo
         if not len(f):
             continue
         a, b = _segments(pi)
-        # In chunks of about 2e6 vertex-segment pairs (a digitised fault and a coastline's
-        # corners would not fit at once).
-        step = max(1, 2_000_000 // max(len(a), 1))
-        d_parts, foot_parts = [], []
-        for s in range(0, len(f), step):
-            t, dist = _segment_feet(f[s:s + step], a, b)
-            k = np.argmin(dist, axis=1)
-            rows = np.arange(len(k))
-            d_parts.append(dist[rows, k])
-            foot_parts.append(a[k] + t[rows, k][:, None] * (b - a)[k])
-        d, foot = np.concatenate(d_parts), np.concatenate(foot_parts)
+        k, t, d = _nearest_segment(f, a, b)
+        foot = a[k] + t[:, None] * (b - a)[k]
         # Within eps of a segment but off it, a vertex is no crossing (the crossing test
         # finds segments that meet, or overlap when collinear), so it is taken here too; one
         # at a vertex of the piece is that vertex.
@@ -1028,6 +989,34 @@ def _insert(p: Piece, q: FloatArray, eps: float) -> Piece:
         pts = np.concatenate([pts, q[new]])[order]
         fixed = np.concatenate([fixed, np.ones(int(new.sum()), dtype=bool)])[order]
     return Piece(pts, fixed, p.closed, p.project, p.owner)
+
+
+def _nearest_segment(q: FloatArray, a: FloatArray, b: FloatArray
+                     ) -> tuple[NDArray[np.intp], FloatArray, FloatArray]:
+    """For each point of ``q``: its nearest segment a-b, the foot's parameter on it and the
+    distance, in chunks of about 2e6 point-segment pairs (a digitised fault across a
+    coastline's corners would not fit at once)."""
+    step = max(1, 2_000_000 // max(len(a), 1))
+    seg, tt, dd = [], [], []
+    for s in range(0, len(q), step):
+        t, dist = _segment_feet(q[s:s + step], a, b)
+        k = np.argmin(dist, axis=1)
+        rows = np.arange(len(k))
+        seg.append(k)
+        tt.append(t[rows, k])
+        dd.append(dist[rows, k])
+    if not seg:
+        return np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0)
+    return np.concatenate(seg), np.concatenate(tt), np.concatenate(dd)
+
+
+def _with_vertices(loop: FloatArray, keys: list[float], points: list[FloatArray]) -> FloatArray:
+    """``loop`` with ``points`` inserted, each after vertex ``floor(key)`` in order of key."""
+    if not points:
+        return loop
+    order = np.argsort(np.concatenate([np.arange(len(loop), dtype=float), keys]), kind="stable")
+    out: FloatArray = np.concatenate([loop, np.array(points)])[order]
+    return out
 
 
 def _segment_feet(q: FloatArray, a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
