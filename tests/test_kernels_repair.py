@@ -31,6 +31,7 @@ from injmesh.quality import triangle_quality
 from injmesh.triangulation import delaunay
 
 KEY = 1 << 31
+NONE = np.zeros(0, dtype=np.int64)  # no excused triangle
 
 
 def _mesh(seed: int, n: int = 80) -> tuple[np.ndarray, np.ndarray]:
@@ -95,6 +96,16 @@ def _ref_choose(p, tri, bad, chord, hv, n_fixed):  # type: ignore[no-untyped-def
     swap = do_collapse & (eb < n_fixed)
     ea, eb = np.where(swap, eb, ea), np.where(swap, ea, eb)
     movable = (eb >= n_fixed) | (~do_collapse & (ea >= n_fixed)) | capped
+    # A too-long edge of two fixed nodes: the free node opposite, inside its diametral circle,
+    # is collapsed into the nearer end, if that end sees its whole star.
+    w = t[rows, (k + 2) % 3]
+    squeezed = np.einsum("ij,ij->i", p[ea] - p[w], p[eb] - p[w]) < 0
+    drop_w = ~movable & ~do_collapse & (w >= n_fixed) & squeezed
+    near = np.where(np.hypot(*(p[ea] - p[w]).T) <= np.hypot(*(p[eb] - p[w]).T), ea, eb)
+    drop_w &= np.array([_ref_sees_star(p, tri, kk, ww) for kk, ww in zip(near, w, strict=True)], dtype=bool)
+    ea, eb = np.where(drop_w, near, ea), np.where(drop_w, w, eb)
+    do_collapse = do_collapse | drop_w
+    movable |= drop_w
     ea, eb, do_collapse = ea[movable], eb[movable], do_collapse[movable]
     empty = np.zeros((0, 2), dtype=np.int64)
     if len(ea) == 0:
@@ -111,6 +122,14 @@ def _ref_choose(p, tri, bad, chord, hv, n_fixed):  # type: ignore[no-untyped-def
     once[uniq] = True
     ok &= once
     return mid, np.stack([ea, eb], axis=1)[ok & do_collapse], np.stack([ea, eb], axis=1)[ok & ~do_collapse]
+
+
+def _ref_sees_star(p, tri, keep, drop):  # type: ignore[no-untyped-def]
+    star = tri[(tri == drop).any(axis=1) & ~(tri == keep).any(axis=1)]
+    moved = np.where(star == drop, keep, star)
+    a, b, c = p[moved[:, 0]], p[moved[:, 1]], p[moved[:, 2]]
+    u, v = b - a, c - a
+    return bool(np.all(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0] > 0))
 
 
 def _ref_edit(p, tri, kept, label, collapse, split, n_fixed):  # type: ignore[no-untyped-def]
@@ -189,7 +208,7 @@ def test_chords_and_round_state_match_numpy(seed: int) -> None:
     label = (np.arange(len(p)) % 3).astype(np.int64)
     pinned = np.array([False, rng.random() < 0.5, False])
     q, ch, changeable, score, score_c, bad = round_state(p, tri, n_boundary, n_fixed, seg_keys,
-                                                         KEY, label, 3, pinned, 0.85)
+                                                         KEY, label, 3, pinned, 0.85, NONE)
     ref_q = triangle_quality(p, tri)
     assert np.array_equal(q, ref_q)
     assert np.array_equal(ch, chord)
@@ -208,7 +227,8 @@ def test_round_state_orders_ties_by_row() -> None:
     p = np.stack([x.ravel(), y.ravel() * 0.5], axis=1)
     tri = np.ascontiguousarray(delaunay(p), dtype=np.int64)
     q, *_, bad = round_state(p, tri, 0, 0, np.zeros(0, dtype=np.int64), KEY,
-                             np.zeros(len(p), dtype=np.int64), 1, np.zeros(1, dtype=np.bool_), 0.99)
+                             np.zeros(len(p), dtype=np.int64), 1, np.zeros(1, dtype=np.bool_), 0.99,
+                             NONE)
     assert np.array_equal(bad, np.argsort(q, kind="stable"))
 
 
@@ -427,3 +447,42 @@ def test_sub_mesh_and_stitch_match_numpy(seed: int) -> None:
     assert np.array_equal(out, want)
     assert np.array_equal(out_tri, np.concatenate([index[tri[~inner]], to_global[sub_tri]]))
     assert np.array_equal(out_kept, np.concatenate([kept[survive], np.full(int((~old).sum()), -1)]))
+
+
+def test_choose_edits_drops_a_free_node_squeezed_against_a_fixed_edge() -> None:
+    """The edge to split joins two fixed nodes (a wall segment): the free node inside its
+    diametral circle goes, into the nearer end, instead of nothing happening; not when the
+    free node is outside that circle."""
+    p = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1.0], [0.45, 0.1]])
+    tri = np.array([[0, 1, 3], [1, 2, 3], [2, 0, 3]], dtype=np.int64)
+    bad = np.array([0], dtype=np.int64)
+    chord = np.full(3, -1, dtype=np.int64)
+    hv = np.full(3, 0.6)
+    collapse, split = choose_edits(p, tri, bad, chord, hv, 3)
+    assert collapse.tolist() == [[0, 3]] and len(split) == 0
+    p[3] = [0.45, 0.6]  # obtuse nowhere: left alone, as before
+    collapse, split = choose_edits(p, tri, bad, chord, hv, 3)
+    assert len(collapse) == 0 and len(split) == 0
+
+
+def test_round_state_leaves_excused_triangles_out_of_the_scores() -> None:
+    """A triangle of fixed nodes whose key is excused does not count in its part's least q,
+    in any vertex order; every other triangle does."""
+    from injmesh.kernels.repair import frozen_key, frozen_key_rows
+
+    x, y = np.meshgrid(np.arange(4.0), np.arange(4.0))
+    p = np.stack([x.ravel(), y.ravel()], axis=1)
+    p[5] += [0.4, 0.35]  # one very flat triangle or two
+    tri = np.ascontiguousarray(delaunay(p), dtype=np.int64)
+    n = len(p)
+    label = np.zeros(n, dtype=np.int64)
+    q = triangle_quality(p, tri)
+    worst = int(np.argmin(q))
+    excused = np.unique(frozen_key_rows(tri[[worst]], n))
+    a, b, c = tri[worst]
+    assert frozen_key(c, a, b, n) == frozen_key(b, c, a, n) == excused[0]
+    args = (p, tri, n, n, np.zeros(0, dtype=np.int64), KEY, label, 1, np.zeros(1, dtype=np.bool_), 0.85)
+    score = round_state(*args, NONE)[3]
+    score_excused = round_state(*args, excused)[3]
+    assert score[0] == q[worst]
+    assert score_excused[0] == np.delete(q, worst).min() > q[worst]

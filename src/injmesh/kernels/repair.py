@@ -109,12 +109,43 @@ def chords(p, tri, n_boundary, seg_keys, key):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def round_state(p, tri, n_boundary, n_fixed, seg_keys, key, label, parts, pinned, repair_q):  # type: ignore[no-untyped-def]
+def frozen_key(a, b, c, n_fixed):  # type: ignore[no-untyped-def]
+    """One int64 for the triangle of fixed nodes ``a, b, c`` (``< n_fixed``) in any order:
+    fixed nodes keep their numbers through the rounds, so it names the same triangle in
+    every round."""
+    lo = min(a, b, c)
+    hi = max(a, b, c)
+    mid = a + b + c - lo - hi
+    return (lo * n_fixed + mid) * n_fixed + hi
+
+
+@njit(cache=True)
+def frozen_key_rows(tri, n_fixed):  # type: ignore[no-untyped-def]
+    """:func:`frozen_key` of each row of ``tri (m, 3)``."""
+    out = np.empty(tri.shape[0], dtype=np.int64)
+    for t in range(tri.shape[0]):
+        out[t] = frozen_key(tri[t, 0], tri[t, 1], tri[t, 2], n_fixed)
+    return out
+
+
+@njit(cache=True)
+def _listed(keys, k):  # type: ignore[no-untyped-def]
+    at = np.searchsorted(keys, k)
+    return at < keys.shape[0] and keys[at] == k
+
+
+@njit(cache=True)
+def round_state(p, tri, n_boundary, n_fixed, seg_keys, key, label, parts, pinned, repair_q,  # type: ignore[no-untyped-def]
+                excused):
     """What the repair rounds need of a round's mesh: each triangle's quality q (Eq. 5.1),
     chord (:func:`chords`), whether a round can change it (a free node or a chord), each
     part's least q over all its triangles and over those a round can change (``inf`` where
     none), and the triangles a round repairs: q below ``repair_q``, changeable, in a part not
     ``pinned``, worst first (ties in row order).
+
+    ``excused``: sorted keys (:func:`frozen_key`) of triangles of three fixed nodes left out of
+    the parts' least q (a sharp tip's triangle, which no round can change, would otherwise
+    be every round's score and hide what the rounds do to the rest of its part).
 
     Returns ``(q, chord, changeable, score, score_changeable, bad)``."""
     m = tri.shape[0]
@@ -127,7 +158,8 @@ def round_state(p, tri, n_boundary, n_fixed, seg_keys, key, label, parts, pinned
     for t in range(m):
         changeable[t] = max(tri[t, 0], tri[t, 1], tri[t, 2]) >= n_fixed or chord[t] >= 0
         part = label[tri[t, 0]]
-        score[part] = min(score[part], q[t])
+        if changeable[t] or not _listed(excused, frozen_key(tri[t, 0], tri[t, 1], tri[t, 2], n_fixed)):
+            score[part] = min(score[part], q[t])
         if changeable[t]:
             score_c[part] = min(score_c[part], q[t])
             if q[t] < repair_q and not pinned[part]:
@@ -159,16 +191,40 @@ def edge_midpoints(p, tri, bad):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
+def _sees_star(p, tri, keep, drop):  # type: ignore[no-untyped-def]
+    """Whether ``drop``'s triangles without ``keep`` stay counter-clockwise with ``keep`` in
+    its place (a collapse of drop into a fixed node keep inverts none of them)."""
+    for t in range(tri.shape[0]):
+        at = -1
+        for k in range(3):
+            if tri[t, k] == keep:
+                at = -2
+                break
+            if tri[t, k] == drop:
+                at = k
+        if at < 0:
+            continue
+        u, v = tri[t, (at + 1) % 3], tri[t, (at + 2) % 3]
+        cross = ((p[u, 0] - p[keep, 0]) * (p[v, 1] - p[keep, 1])
+                 - (p[u, 1] - p[keep, 1]) * (p[v, 0] - p[keep, 0]))
+        if not cross > 0.0:
+            return False
+    return True
+
+
+@njit(cache=True)
 def choose_edits(p, tri, bad, chord, h_mid, n_fixed):  # type: ignore[no-untyped-def]
     """``smoothing._choose_repairs`` after h: the edge operations for the triangles ``bad``
     (worst first) whose edges' desired lengths are ``h_mid`` (:func:`edge_midpoints`).
 
     In each triangle the edge furthest from h (length over h: the shortest if it is further
     below 1 than the longest is above, the first of equal ratios) is collapsed or split, its
-    chord split if it has one; a collapse keeps a fixed node and drops the free one; an edge
-    between two fixed nodes is left alone but for a chord.  An operation is dropped unless it
-    is the first, in this order, to use each of its two nodes (so an edge chosen by both its
-    triangles is taken once).
+    chord split if it has one; a collapse keeps a fixed node and drops the free one.  An edge
+    between two fixed nodes is never split but for a chord: when it is the one to split, the
+    triangle's third node, if free and inside the edge's diametral circle, is collapsed into
+    the nearer of the two instead, where that keeps its star counter-clockwise.  An operation
+    is dropped unless it is the first, in this order, to use each of its two nodes (so an
+    edge chosen by both its triangles is taken once).
 
     Returns ``(collapse (c, 2), split (s, 2))`` int64, collapse rows ``(keep, drop)``."""
     nb = bad.shape[0]
@@ -199,6 +255,23 @@ def choose_edits(p, tri, bad, chord, h_mid, n_fixed):  # type: ignore[no-untyped
         if b >= n_fixed or (not do_collapse and a >= n_fixed) or capped:
             ea[c], eb[c], col[c] = a, b, do_collapse
             c += 1
+        elif not do_collapse:
+            # Too long, between two fixed nodes (a wall segment, a strip's rung): the free node
+            # opposite it is squeezed against it, the triangle obtuse there (a strip narrowing
+            # from two layers to one, a wall segment at a corner).  Nothing can split the
+            # edge, so that node goes, into the nearer end.
+            w = tri[t, (k + 2) % 3]
+            squeezed = ((p[a, 0] - p[w, 0]) * (p[b, 0] - p[w, 0])
+                        + (p[a, 1] - p[w, 1]) * (p[b, 1] - p[w, 1])) < 0.0
+            if w >= n_fixed and squeezed:
+                da = math.hypot(p[a, 0] - p[w, 0], p[a, 1] - p[w, 1])
+                db = math.hypot(p[b, 0] - p[w, 0], p[b, 1] - p[w, 1])
+                keep = a if da <= db else b
+                # Only where the fixed node sees the whole star of w: an inverted triangle
+                # would end the rounds (``smoothing._repair_rounds``).
+                if _sees_star(p, tri, keep, w):
+                    ea[c], eb[c], col[c] = keep, w, True
+                    c += 1
     first = np.full(n, c, dtype=np.int64)
     for i in range(c - 1, -1, -1):
         first[ea[i]] = i
