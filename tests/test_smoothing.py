@@ -324,3 +324,39 @@ def test_the_strip_of_a_narrow_spike_keeps_0_7(angle: float) -> None:
         at_tip = tip[mesh.triangles].any(axis=1)
         assert at_tip.sum() == 1
         assert q[~at_tip].min() >= 0.7, (angle, h, q[~at_tip].min())
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_a_plain_function_is_stepped_against_a_fine_polygon_of_its_boundary(name: str) -> None:
+    """A plain d(p) has no compiled form: the relaxation steps against a polygon of its
+    boundary (``_stand_in``) whose vertices are on the zero set, with every corner among
+    them, whose chords are within STAND_IN_SAG of the shortest wall from the curve, with the
+    domain on its left; the mesh's boundary nodes end on the exact boundary."""
+    from injmesh.geometry import as_domain
+    from injmesh.smoothing import STAND_IN_SAG, _stand_in
+
+    case = CASES[name]
+    domain = as_domain(case.sdf, bbox=case.bbox, fixed_points=case.fixed_points)
+    mesh = generate(case.sdf, case.size, bbox=case.bbox, fixed_points=case.fixed_points)
+    walls = mesh.boundary_edges
+    shortest = np.hypot(*(mesh.points[walls[:, 0]] - mesh.points[walls[:, 1]]).T).min()
+    poly = _stand_in(domain, mesh.points, walls)
+    assert poly is not None and poly.kernel_boundary() is not None
+    p0, p1, _, sweep, _ = poly._global_pieces()
+    assert not sweep.any()
+    diameter = domain.diameter
+    assert np.abs(case.sdf(p0)).max() <= 1e-9 * diameter
+    for c in domain.corners():
+        assert np.hypot(*(p0 - c).T).min() == 0.0
+    mid = domain.project(0.5 * (p0 + p1))
+    t = p1 - p0
+    off = np.abs(t[:, 0] * (mid - p0)[:, 1] - t[:, 1] * (mid - p0)[:, 0]) / np.hypot(*t.T)
+    assert off.max() <= STAND_IN_SAG * shortest
+    rng = np.random.default_rng(0)
+    x0, y0, x1, y1 = case.bbox
+    q = np.stack([rng.uniform(x0, x1, 4000), rng.uniform(y0, y1, 4000)], axis=1)
+    d = case.sdf(q)
+    clear = np.abs(poly.sdf(q)) > 10 * STAND_IN_SAG * shortest
+    assert np.array_equal(np.sign(poly.sdf(q[clear])), np.sign(d[clear]))
+    on = np.unique(walls)
+    assert np.abs(case.sdf(mesh.points[on])).max() <= 1e-9 * diameter
