@@ -505,7 +505,7 @@ def test_a_kept_node_estimate_is_the_one_of_the_size_followed(seed) -> None:
     for domain in (Circle(c, r), Circle(c, r) - Circle(c + 0.3 * r * rng.uniform(-1, 1, 2), 0.2 * r)):
         for size in sizes:
             h = as_size_function(size)
-            dom, _, known = _clean(domain, h)
+            dom, _, known, _ = _clean(domain, h)
             assert isinstance(known, _Estimate)
             cornered = corner_size(dom, h, 0.2)
             target, follow = _target_size(dom, cornered, 2.0, 0.2)
@@ -539,3 +539,45 @@ def test_a_combination_answers_the_node_estimate_as_its_exact_boundary(seed) -> 
     assert _answers_as(domain, exact) or seed % 4 == 2
     if _answers_as(domain, exact):
         assert estimate_nodes(domain, h.restricted(domain)) == estimate_nodes(exact, h.restricted(exact))
+
+
+def _pfix_polygon() -> tuple[np.ndarray, np.ndarray]:
+    """A polygon as GIS data gives it, and its vertices as a DistMesh ``pfix``: a vertex
+    repeated 2e-7 away, and vertices on straight sides (which the outline does not make
+    corners of)."""
+    ring = np.array([(0.0, 0.0), (0.5, 0.0), (1.0, 0.0), (1.0, 0.6), (1.0000002, 0.6000001),
+                     (0.7, 1.0), (0.35, 1.0), (0.0, 1.0), (0.0, 0.5)])
+    return ring, ring.copy()
+
+
+@pytest.mark.parametrize("form", ["geometry", "plain"])
+def test_a_pfix_of_the_polygons_vertices_meshes(form: str) -> None:
+    """Every vertex of the outline given as a fixed point, near-duplicates included, as
+    DistMesh users write it: one node per distinct vertex, none twice (the repeated vertex
+    made a zero-area triangle, a vertex on a straight side two nodes at one place), and the
+    merge counted in ``stats.cleaning``."""
+    ring, pfix = _pfix_polygon()
+    poly = Polygon(ring)
+    if form == "geometry":
+        mesh = injmesh.generate(poly, 0.1, fixed_points=pfix)
+    else:
+        mesh = injmesh.generate(poly.sdf, 0.1, bbox=(-0.1, -0.1, 1.1, 1.1), fixed_points=pfix)
+    assert_valid_mesh(mesh, poly)
+    distinct = np.delete(pfix, 4, axis=0)
+    for v in distinct:
+        assert np.hypot(*(mesh.points - v).T).min() <= 3e-7
+    # No two nodes closer than the checks' "same point".
+    from scipy.spatial import cKDTree
+
+    assert not cKDTree(mesh.points).query_pairs(1e-6 * poly.diameter)
+    if form == "geometry":
+        assert mesh.stats.cleaning.get("merged_fixed_points", 0) >= 1
+
+
+def test_a_fixed_point_a_hair_inside_the_boundary_is_one_boundary_node() -> None:
+    """A point 1e-9 inside a side is on the boundary as far as the checks go: one boundary
+    node, not a boundary node and an interior node at the same place."""
+    square = Rectangle((0, 0), (1, 1))
+    mesh = injmesh.generate(square, 0.2, fixed_points=[(0.5, 1e-9)])
+    assert_valid_mesh(mesh, square)
+    assert np.count_nonzero(np.hypot(mesh.points[:, 0] - 0.5, mesh.points[:, 1]) < 1e-6) == 1

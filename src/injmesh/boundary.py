@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 from . import _tolerances as tol
 from .errors import NodeBudgetError
 from .geometry import BRep, Domain, GeometryError
-from .geometry.base import ring_next, ring_prev
+from .geometry.base import dedupe_points, ring_next, ring_prev
 from .geometry.regions import Piece
 from .geometry.tracing import grid_spacing
 from .progress import Callback, report
@@ -185,6 +185,10 @@ def mesh_boundary(
             i = int(np.argmax(dfix > on))
             raise ValueError(f"fixed point {tuple(fixed_points[i].tolist())} lies outside the domain")
         corners = np.concatenate([corners, fixed_points[np.abs(dfix) <= on]])
+    # One node per point: a user's point on a vertex the outline resolves anyway (a DistMesh
+    # pfix of the polygon's vertices), or a resolved vertex at a corner, was inserted twice
+    # (two nodes at one place, their segments lost).  The first, the domain's own, stays.
+    corners = dedupe_points(corners, on)
 
     along = _tip_graded(domain, h)
     pts, fixed, loop_id = [], [], []

@@ -25,7 +25,7 @@ from .boundary import (
 )
 from .errors import ConvergenceWarning, MeshError, NodeBudgetError
 from .geometry import BRep, Difference, Domain, GeometryError, Intersection, Union, as_domain
-from .geometry.base import KernelBoundary, as_points
+from .geometry.base import KernelBoundary, as_points, dedupe_points
 from .geometry.regions import Constraints, CurvesLike, RegionsLike, build_constraints
 from .geometry.tracing import grid_spacing
 from .injection import inject_nodes
@@ -96,6 +96,10 @@ def generate(
         Required for a callable ``domain``; ignored for a Domain.
     fixed_points : (k, 2) array_like, optional
         Points that become mesh nodes and never move.  On the boundary they act as corners.
+        A point within 1e-6 of the domain's diameter of an earlier one, or of a corner, is
+        that point; where cleaning moved the outline, points within its tolerance of the
+        cleaned boundary are put on it (``mesh.stats.cleaning["merged_fixed_points"]``
+        counts both), so a DistMesh ``pfix`` of a GIS outline's vertices meshes.
     max_iterations : int, optional
         Cap on smoothing iterations (default 1000 for injection, 10000 for DistMesh).  Reaching it
         emits a :class:`ConvergenceWarning` and returns a mesh with ``converged=False``.  An
@@ -202,7 +206,7 @@ def generate(
     with compile_progress(callback):
         dom = as_domain(domain, bbox=bbox, fixed_points=fixed_points)
         h = as_size_function(size)
-        fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
+        dom, fixed, merged_fixed = _user_fixed(domain, bbox, fixed_points, dom)
         if max_iterations is not None and (int(max_iterations) != max_iterations or max_iterations < 0):
             raise ValueError(f"max_iterations must be a non-negative integer, got {max_iterations!r}")
         if not (isinstance(max_nodes, (int, np.integer)) and max_nodes > 0):
@@ -246,7 +250,10 @@ def generate(
             if smoothing not in ("hybrid", "attractive"):
                 raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
             raw = dom
-            dom, cleaning, known = _clean(dom, h, min_feature)
+            dom, cleaning, known, eps = _clean(dom, h, min_feature)
+            if cleaning and len(fixed):
+                fixed, moved = _fixed_on_cleaned(dom, fixed, eps)
+                merged_fixed += moved
             constraints = None
             if regions is not None or curves is not None:
                 if cleaning.get("cusps") and isinstance(regions, Mapping):
@@ -262,6 +269,8 @@ def generate(
             target, follow = _target_size(dom, cornered, feature_layers, gradation)
             mesh = _injection(dom, follow, fixed, max_iterations, int(max_nodes), smoothing, callback,
                               constraints, known.followed(dom, cornered, target))
+            if merged_fixed:
+                cleaning = {**cleaning, "merged_fixed_points": merged_fixed}
             mesh = replace(mesh, size=target, stats=replace(mesh.stats, cleaning=cleaning))
         else:
             raise ValueError(f"method must be 'injection' or 'distmesh', got {method!r}")
@@ -311,11 +320,13 @@ def initial_nodes(
     2
     """
     dom = as_domain(domain, bbox=bbox, fixed_points=fixed_points)
+    dom, fixed, _ = _user_fixed(domain, bbox, fixed_points, dom)
     h0 = as_size_function(size)
-    dom, _, known = _clean(dom, h0, min_feature)
+    dom, cleaning, known, eps = _clean(dom, h0, min_feature)
+    if cleaning and len(fixed):
+        fixed, _ = _fixed_on_cleaned(dom, fixed, eps)
     cornered = corner_size(dom, h0, _rate(gradation))
     target, h = _target_size(dom, cornered, feature_layers, gradation)
-    fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
     bnd, seeds, injected = _place_nodes(dom, h, fixed, max_nodes, None,
                                         estimate=known.followed(dom, cornered, target))
     return np.concatenate([seeds, injected])
@@ -344,7 +355,9 @@ def _place_nodes(
     t = time.perf_counter()
     # Step 2: Advancing Node Injection (Algorithm 4).  Nodes are ordered boundary, user fixed
     # interior points, injected: the first n_fixed never move.
-    interior_fixed = fixed[domain.sdf(fixed) < 0] if len(fixed) else fixed
+    # A point within the on-boundary tolerance of the boundary is a boundary node (Step 1's
+    # corner), not an interior one as well.
+    interior_fixed = fixed[domain.sdf(fixed) < -tol.ON_BOUNDARY * domain.diameter] if len(fixed) else fixed
     seeds = np.concatenate([bnd.points, interior_fixed])
     injected = inject_nodes(domain, h, bnd, seeds, max_nodes=max_nodes, callback=callback)
     if seconds is not None:
@@ -526,13 +539,81 @@ def _capped(h: Callable[[FloatArray], FloatArray], cap: float) -> Callable[[Floa
     return capped
 
 
+def _user_fixed(
+    given: object, bbox: ArrayLike | None, fixed_points: ArrayLike | None, domain: Domain
+) -> tuple[Domain, FloatArray, int]:
+    """The user's fixed points as an array, merged (:func:`_merged_fixed`), the domain made
+    again from a plain function with the merged ones (its corners come from them), and how
+    many went."""
+    fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
+    fixed, merged = _merged_fixed(domain, fixed)
+    if merged and not isinstance(given, Domain) and callable(given):
+        domain = as_domain(given, bbox=bbox, fixed_points=fixed)
+    return domain, fixed, merged
+
+
+def _merged_fixed(domain: Domain, fixed: FloatArray) -> tuple[FloatArray, int]:
+    """The user's fixed points without those within ``ON_BOUNDARY`` of the diameter (the
+    checks' own "same point") of an earlier one, a corner of the domain taking the place of
+    a point that close to it, and how many went.
+
+    A DistMesh-style ``pfix`` taken from GIS data repeats vertices 1e-7 apart; as given, each
+    became a node, two nodes that close a triangle of zero area (a ``MeshError``).
+    """
+    if len(fixed) == 0:
+        return fixed, 0
+    from scipy.spatial import cKDTree
+
+    same = tol.ON_BOUNDARY * domain.diameter
+    out = dedupe_points(fixed, same).copy()
+    corners = domain.corners() if isinstance(domain, (BRep, Difference, Intersection, Union)) else None
+    if corners is not None and len(corners):
+        dist, at = cKDTree(corners).query(out)
+        near = dist <= same
+        out[near] = corners[at[near]]
+    dropped = len(fixed) - len(out)
+    if dropped:
+        logger.info("%d fixed point(s) within %.3g of another merged", dropped, same)
+    return out, dropped
+
+
+def _fixed_on_cleaned(domain: Domain, fixed: FloatArray, eps: float) -> tuple[FloatArray, int]:
+    """Fixed points within the cleaning's tolerance ``eps`` of the cleaned boundary put on it
+    (onto a corner within ``eps``, else projected), then points within ``eps`` of an earlier
+    one dropped; how many moved or went.
+
+    Cleaning moves the outline by up to ``eps`` (merged vertices, dropped spikes): a ``pfix``
+    list of the raw vertices then holds points just inside or outside the cleaned boundary,
+    which as given became nodes that close to it (a triangle of zero area, a lost segment).
+    """
+    from scipy.spatial import cKDTree
+
+    out = fixed.copy()
+    d = domain.sdf(out)
+    near = (np.abs(d) <= eps) & (d != 0)
+    corners = domain.corners()
+    if len(corners):
+        dist, at = cKDTree(corners).query(out)
+        snap = dist <= eps
+        out[snap] = corners[at[snap]]
+        near &= ~snap
+    else:
+        snap = np.zeros(len(out), dtype=bool)
+    if near.any():
+        out[near] = domain.project(out[near])
+    moved = int(np.count_nonzero(np.hypot(*(out - fixed).T) > 0))
+    kept = dedupe_points(out, eps)
+    return kept, moved + len(out) - len(kept)
+
+
 def _clean(
     domain: Domain, h: SizeFunction, min_feature: float | None = None
-) -> tuple[Domain, dict[str, int], _Estimate]:
+) -> tuple[Domain, dict[str, int], _Estimate, float]:
     """The domain cleaned at the scale of h: vertices closer than ``CLEAN * h_min`` merged,
     zero-length edges and spikes dropped, parts beyond pinches narrower than ``min_feature``
-    dropped (``Domain.cleaned``), what changed, and the node estimate of h on the domain
-    when it was made (:class:`_Estimate`: a later stage may reuse it).
+    dropped (``Domain.cleaned``), what changed, the node estimate of h on the domain
+    when it was made (:class:`_Estimate`: a later stage may reuse it), and the tolerance
+    (``CLEAN * h_min``, 0 when nothing is cleaned).
 
     GIS outlines carry vertices 1e-7 apart; meshed as given they make a duplicate node and a
     triangle of zero area.  A detailed outline also comes back within a fraction of h of itself
@@ -561,7 +642,7 @@ def _clean(
     if type(domain).cleaned is Domain.cleaned:
         # The base class cleans nothing (a plain signed distance): no tolerance is needed, so
         # h_min's estimate, a quadrature of h over the domain, is left out.
-        return domain, {}, _Estimate()
+        return domain, {}, _Estimate(), 0.0
     known = _Estimate()
     # A constant h (capped at the diameter, as the stages cap it) is its own minimum.
     if h.constant is not None:
@@ -588,7 +669,7 @@ def _clean(
                    f"{width:.3g} were dropped (lobes removed, pockets filled) at {shown}{more}")
         logger.info(message)
         warnings.warn(message, UserWarning, stacklevel=3)
-    return cleaned, changes, known
+    return cleaned, changes, known, CLEAN * h_min
 
 
 @dataclass(frozen=True)
@@ -926,7 +1007,9 @@ def _injection_with_curves(
     curve_pts = cm.points[~on_b]
     seconds["boundary"] = time.perf_counter() - t
     t = time.perf_counter()
-    interior_fixed = fixed[domain.sdf(fixed) < 0] if len(fixed) else fixed
+    # A point within the on-boundary tolerance of the boundary is a boundary node (Step 1's
+    # corner), not an interior one as well.
+    interior_fixed = fixed[domain.sdf(fixed) < -tol.ON_BOUNDARY * domain.diameter] if len(fixed) else fixed
     seeds = np.concatenate([bnd.points, curve_pts, interior_fixed])
     # Step 2: the curves are fronts facing both ways.
     front = _curve_front(domain, bnd, cm, ids, seeds)

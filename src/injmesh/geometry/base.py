@@ -39,6 +39,18 @@ def as_points(p: object) -> FloatArray:
     return a
 
 
+def dedupe_points(p: FloatArray, eps: float) -> FloatArray:
+    """``p (n, 2)`` without the points within ``eps`` of an earlier one (order kept)."""
+    from scipy.spatial import cKDTree
+
+    if len(p) < 2:
+        return p
+    pairs = cKDTree(p).query_pairs(eps, output_type="ndarray")
+    drop = np.zeros(len(p), dtype=bool)
+    drop[pairs.max(axis=1)] = True
+    return p[~drop]
+
+
 def ring_next(a: NDArray[Any]) -> NDArray[Any]:
     """``np.roll(a, -1, axis=0)``: each row's successor round a closed loop.  The ring loops of
     polygon building and cleaning and of Step 1 shift short arrays many times per mesh, where

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import _tolerances as tol
-from .base import BBox, Domain, FloatArray, KernelBoundary, as_points
+from .base import BBox, Domain, FloatArray, KernelBoundary, as_points, dedupe_points
 from .brep import BRep
 
 IntArray = NDArray[np.intp]
@@ -201,7 +201,7 @@ class _Combination(Domain):
         c = np.concatenate(cands) if cands else np.empty((0, 2))
         if len(c) == 0:
             return c
-        return _dedupe(c[self.on_boundary(c)], 1e-9 * self.diameter)
+        return dedupe_points(c[self.on_boundary(c)], 1e-9 * self.diameter)
 
 
 class Union(_Combination):
@@ -261,18 +261,6 @@ def _active_of(domain: Domain, p: FloatArray) -> tuple[FloatArray, IntArray, Flo
     if isinstance(domain, _Combination):
         return domain._active(p)
     return domain.sdf(p), np.zeros(len(p), dtype=np.intp), np.full(len(p), np.inf)
-
-
-def _dedupe(p: FloatArray, eps: float) -> FloatArray:
-    """Drop points within ``eps`` of an earlier one (order kept)."""
-    from scipy.spatial import cKDTree
-
-    if len(p) < 2:
-        return p
-    pairs = cKDTree(p).query_pairs(eps, output_type="ndarray")
-    drop = np.zeros(len(p), dtype=bool)
-    drop[pairs.max(axis=1)] = True
-    return p[~drop]
 
 
 def densify(loop: FloatArray, spacing: float) -> FloatArray:
