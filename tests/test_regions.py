@@ -656,3 +656,24 @@ def test_cli_bad_region_leaves_no_file(tmp_path, capsys):
                  "-o", str(out)]) != 0
     assert "region 'big' extends outside the domain" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == [regions]
+
+
+def test_regions_and_a_crack_on_a_plain_function() -> None:
+    """A plain d(p) domain with regions and a crack: stepped against its boundary's polygon
+    (``smoothing._stand_in``) with the curves' own kernels, its boundary nodes end on d = 0,
+    every region's triangles fill the region, and the mesh is the composed square's."""
+
+    def square(p: np.ndarray) -> np.ndarray:
+        return np.maximum(np.abs(p[:, 0] - 0.5), np.abs(p[:, 1] - 0.5)) - 0.5
+
+    regions = {"a": Circle((0.3, 0.3), 0.15), "b": Circle((0.7, 0.65), 0.2)}
+    crack = {"crack": np.array([(0.1, 0.8), (0.3, 0.75), (0.5, 0.9)])}
+    plain = injmesh.generate(square, 0.05, bbox=(-0.1, -0.1, 1.1, 1.1), regions=regions, curves=crack,
+                             fixed_points=[(0, 0), (1, 0), (1, 1), (0, 1)])
+    composed = injmesh.generate(Rectangle((0, 0), (1, 1)), 0.05, regions=regions, curves=crack)
+    assert_valid_mesh(plain, Rectangle((0, 0), (1, 1)))
+    on = np.unique(plain.boundary_edges)
+    assert np.abs(square(plain.points[on])).max() <= 1e-12
+    assert plain.n_points == composed.n_points
+    assert abs(plain.quality().min() - composed.quality().min()) <= 0.02
+    assert np.allclose(plain.region_areas(), composed.region_areas(), rtol=1e-3)

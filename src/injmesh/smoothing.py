@@ -121,10 +121,12 @@ Other choices the paper leaves open:
   two runs is two compiled calls around the one Python call it needs, h at the new bars'
   midpoints (``kernels.smooth.relink`` and ``resize``; it was ~180 us of a dozen calls, three
   quarters of a run's time).  The same kernels in the same order, and the boundary queries
-  the methods make, so the meshes are bit-identical to the loop's (plain signed distances and
-  curves without a kernel form keep the loop).  Interior curves too: each sliding row projects onto its
-  own boundary (the domain's, a region's, a polyline's), each boundary queried on its rows in
-  order as the Python projectors are.  The paper's six cases: 6-28 % less time in all; with
+  the methods make, so the meshes are bit-identical to the loop's (curves without a kernel
+  form keep the loop).  Interior curves too: each sliding row projects onto its own boundary
+  (the domain's, a region's, a polyline's), each boundary queried on its rows in order as the
+  Python projectors are.  A plain signed distance, which has no kernel form, is stepped
+  against a fine polygon of its boundary (``_stand_in``), its boundary nodes projected back
+  onto d = 0 at the end.  The paper's six cases: 6-28 % less time in all; with
   one inclusion, 17-29 % (A/B in one run, with the patch set-up and quality-pass sweeps
   compiled too).
 
@@ -1269,10 +1271,10 @@ def smooth(
 
         kept[n_fixed:] = n_fixed + hilbert_order(p[n_fixed:])
         p = p[kept]
-    project = None if interfaces is None else interfaces.projector(domain)
     # A boundary the kernels cannot query (a plain d(p)) is stepped against a fine polygon of
-    # it, compiled; the sliding nodes are put back on the exact boundary after the repair.
-    stand_in = _stand_in(domain, p, wall) if interfaces is None and len(slide) else None
+    # it, compiled; the boundary nodes are put back on the exact boundary at the end.
+    stand_in = _stand_in(domain, p, wall) if len(slide) else None
+    project = None if interfaces is None else interfaces.projector(stand_in or domain)
     relax = _Relaxation(stand_in or domain, h, p, n_fixed, slide, wall, callback, cap, project=project)
     if cap == 0 or len(p) == n_fixed:
         converged = True
@@ -1314,7 +1316,7 @@ def smooth(
         p, tri, iseg, igroup, node_group, extra = _recover_interfaces(
             domain, h, p, tri, n_fixed, n_pre, wall, interfaces)
         triangulations += extra
-        project = interfaces.projector(domain, node_group)
+        project = interfaces.projector(stand_in or domain, node_group)
     kept = np.concatenate([kept, np.full(len(p) - len(kept), -1)])
     if polish:
         movable = np.arange(len(p)) >= n_fixed
