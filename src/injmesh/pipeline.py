@@ -251,8 +251,8 @@ def generate(
                 raise ValueError(f"smoothing must be 'hybrid' or 'attractive', got {smoothing!r}")
             raw = dom
             dom, cleaning, known, eps = _clean(dom, h, min_feature)
-            if cleaning and len(fixed):
-                fixed, moved = _fixed_on_cleaned(dom, fixed, eps)
+            if cleaning:
+                fixed, moved = _settled_fixed(dom, fixed, eps, onto=True)
                 merged_fixed += moved
             constraints = None
             if regions is not None or curves is not None:
@@ -323,8 +323,8 @@ def initial_nodes(
     dom, fixed, _ = _user_fixed(domain, bbox, fixed_points, dom)
     h0 = as_size_function(size)
     dom, cleaning, known, eps = _clean(dom, h0, min_feature)
-    if cleaning and len(fixed):
-        fixed, _ = _fixed_on_cleaned(dom, fixed, eps)
+    if cleaning:
+        fixed, _ = _settled_fixed(dom, fixed, eps, onto=True)
     cornered = corner_size(dom, h0, _rate(gradation))
     target, h = _target_size(dom, cornered, feature_layers, gradation)
     bnd, seeds, injected = _place_nodes(dom, h, fixed, max_nodes, None,
@@ -542,68 +542,57 @@ def _capped(h: Callable[[FloatArray], FloatArray], cap: float) -> Callable[[Floa
 def _user_fixed(
     given: object, bbox: ArrayLike | None, fixed_points: ArrayLike | None, domain: Domain
 ) -> tuple[Domain, FloatArray, int]:
-    """The user's fixed points as an array, merged (:func:`_merged_fixed`), the domain made
-    again from a plain function with the merged ones (its corners come from them), and how
-    many went."""
+    """The user's fixed points as an array, those within ``ON_BOUNDARY`` of the diameter (the
+    checks' own "same point") of a corner or of an earlier one merged (:func:`_settled_fixed`),
+    the domain made again from a plain function with the merged ones (its corners come from
+    them), and how many changed.
+
+    A DistMesh-style ``pfix`` taken from GIS data repeats vertices 1e-7 apart; as given, each
+    became a node, two nodes that close a triangle of zero area (a ``MeshError``).
+    """
     fixed = np.empty((0, 2)) if fixed_points is None else as_points(fixed_points)
-    fixed, merged = _merged_fixed(domain, fixed)
+    fixed, merged = _settled_fixed(domain, fixed, tol.ON_BOUNDARY * domain.diameter, onto=False)
     if merged and not isinstance(given, Domain) and callable(given):
         domain = as_domain(given, bbox=bbox, fixed_points=fixed)
     return domain, fixed, merged
 
 
-def _merged_fixed(domain: Domain, fixed: FloatArray) -> tuple[FloatArray, int]:
-    """The user's fixed points without those within ``ON_BOUNDARY`` of the diameter (the
-    checks' own "same point") of an earlier one, a corner of the domain taking the place of
-    a point that close to it, and how many went.
+def _settled_fixed(domain: Domain, fixed: FloatArray, eps: float, onto: bool) -> tuple[FloatArray, int]:
+    """Fixed points within ``eps`` of a corner of the domain made that corner, with ``onto``
+    those within ``eps`` of its boundary projected onto it, then those within ``eps`` of an
+    earlier one dropped; and how many moved or went.
 
-    A DistMesh-style ``pfix`` taken from GIS data repeats vertices 1e-7 apart; as given, each
-    became a node, two nodes that close a triangle of zero area (a ``MeshError``).
+    ``onto`` after cleaning, which moves the outline by up to its tolerance (merged vertices,
+    dropped spikes): a ``pfix`` of the raw vertices then holds points a hair inside or
+    outside the cleaned boundary, which as given became nodes that close to it (a triangle of
+    zero area, a lost segment).  A plain function's corners are its fixed points (and finding
+    the others traces it): only a domain with explicit corners is snapped to them.
     """
     if len(fixed) == 0:
         return fixed, 0
     from scipy.spatial import cKDTree
 
-    same = tol.ON_BOUNDARY * domain.diameter
-    out = dedupe_points(fixed, same).copy()
-    corners = domain.corners() if isinstance(domain, (BRep, Difference, Intersection, Union)) else None
-    if corners is not None and len(corners):
-        dist, at = cKDTree(corners).query(out)
-        near = dist <= same
-        out[near] = corners[at[near]]
-    dropped = len(fixed) - len(out)
-    if dropped:
-        logger.info("%d fixed point(s) within %.3g of another merged", dropped, same)
-    return out, dropped
-
-
-def _fixed_on_cleaned(domain: Domain, fixed: FloatArray, eps: float) -> tuple[FloatArray, int]:
-    """Fixed points within the cleaning's tolerance ``eps`` of the cleaned boundary put on it
-    (onto a corner within ``eps``, else projected), then points within ``eps`` of an earlier
-    one dropped; how many moved or went.
-
-    Cleaning moves the outline by up to ``eps`` (merged vertices, dropped spikes): a ``pfix``
-    list of the raw vertices then holds points just inside or outside the cleaned boundary,
-    which as given became nodes that close to it (a triangle of zero area, a lost segment).
-    """
-    from scipy.spatial import cKDTree
+    from .geometry.implicit import Implicit
 
     out = fixed.copy()
-    d = domain.sdf(out)
-    near = (np.abs(d) <= eps) & (d != 0)
-    corners = domain.corners()
+    corners = np.empty((0, 2)) if isinstance(domain, Implicit) else domain.corners()
+    snap = np.zeros(len(out), dtype=bool)
     if len(corners):
         dist, at = cKDTree(corners).query(out)
         snap = dist <= eps
         out[snap] = corners[at[snap]]
-        near &= ~snap
-    else:
-        snap = np.zeros(len(out), dtype=bool)
-    if near.any():
-        out[near] = domain.project(out[near])
+    if onto:
+        d = domain.sdf(out)
+        near = (np.abs(d) <= eps) & (d != 0) & ~snap
+        if near.any():
+            out[near] = domain.project(out[near])
     moved = int(np.count_nonzero(np.hypot(*(out - fixed).T) > 0))
     kept = dedupe_points(out, eps)
-    return kept, moved + len(out) - len(kept)
+    changed = moved + len(out) - len(kept)
+    if changed:
+        logger.info("%d fixed point(s) within %.3g of a corner, the boundary or another settled",
+                    changed, eps)
+    return kept, changed
 
 
 def _clean(
