@@ -313,7 +313,7 @@ def cleaned_shape(domain: Any, size: Any, shape: Any, h0: float) -> tuple[Any, f
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # reported already, by the run being checked
-        cleaned, _, _ = _clean(domain, as_size_function(size))
+        cleaned, _, _, _ = _clean(domain, as_size_function(size))
     rings = [np.asarray(r, dtype=float) for r in cleaned.rings]
     raw = shapely.MultiLineString([np.vstack([r, r[:1]]) for r in shape.rings])
     new = shapely.MultiLineString([np.vstack([r, r[:1]]) for r in rings])

@@ -65,7 +65,7 @@ def stages(domain: Any, size: Any) -> tuple[dict[str, float], dict[str, float], 
     clock = _Clock()
     dom = as_domain(domain)
     h = as_size_function(size)
-    dom, _, _ = _clean(dom, h)
+    dom, _, _, _ = _clean(dom, h)
     clock.lap("clean")
     _, follow = _target_size(dom, h, 2.0, 0.2)
     clock.lap("size")
