@@ -360,3 +360,33 @@ def test_a_plain_function_is_stepped_against_a_fine_polygon_of_its_boundary(name
     assert np.array_equal(np.sign(poly.sdf(q[clear])), np.sign(d[clear]))
     on = np.unique(walls)
     assert np.abs(case.sdf(mesh.points[on])).max() <= 1e-9 * diameter
+
+
+def test_a_plain_function_whose_hole_the_polygon_misses_keeps_the_exact_path(monkeypatch) -> None:
+    """A hole 0.008 across in a square 2 across, with h graded down to 0.001 at it: the
+    corners' tracing (2.8 / 160 apart) resolves it poorly, its wall nodes are off the polygon
+    by more than the sag, so there is no stand-in and the mesh is the exact path's (q_min
+    0.57 with the coarse polygon)."""
+    from injmesh import smoothing as S
+
+    def d(p: np.ndarray) -> np.ndarray:
+        box = np.maximum(np.abs(p[:, 0]), np.abs(p[:, 1])) - 1
+        return np.maximum(box, -(np.hypot(p[:, 0] - 0.3, p[:, 1] - 0.2) - 0.004))
+
+    def h(p: np.ndarray) -> np.ndarray:
+        return 0.001 + 0.3 * np.maximum(np.hypot(p[:, 0] - 0.3, p[:, 1] - 0.2) - 0.004, 0)
+
+    made: list[object] = []
+    original = S._stand_in
+
+    def spy(domain, p, walls):  # type: ignore[no-untyped-def]
+        made.append(original(domain, p, walls))
+        return made[-1]
+
+    monkeypatch.setattr(S, "_stand_in", spy)
+    mesh = generate(d, h, bbox=(-1.1, -1.1, 1.1, 1.1), fixed_points=[(-1, -1), (1, -1), (1, 1), (-1, 1)])
+    assert made == [None]
+    assert np.array_equal(np.unique(mesh.boundary_tags), [0, 1])
+    assert mesh.quality().min() >= 0.8
+    on = np.unique(mesh.boundary_edges)
+    assert np.abs(d(mesh.points[on])).max() <= 1e-9

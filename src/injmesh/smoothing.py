@@ -1143,19 +1143,28 @@ def _stand_in(domain: Domain, p: FloatArray, walls: IntArray) -> Domain | None:
             flags[place[split]] = True
             flags[place[split] + 1] = True
             loops[k], pending[k] = out, flags
-    # The domain on the left of every piece: d a tenth of the shortest wall (far beyond the
-    # chords' sag, well inside any feature) left of each loop's longest chord.
-    probes = []
+    # The domain on the left of every piece: the left normal of each loop's longest chord
+    # against d's gradient at the chord's foot on the boundary (a local test: a probe point
+    # off the chord could land across a slit narrower than its offset).
+    mids, normals = [], []
     for loop in loops:
         t = np.roll(loop, -1, axis=0) - loop
         k = int(np.argmax(np.hypot(*t.T)))
-        u = t[k] / np.hypot(*t[k])
-        probes.append(loop[k] + 0.5 * t[k] + 0.1 * shortest * np.array([-u[1], u[0]]))
-    flip = domain.sdf(np.array(probes)) > 0
+        mids.append(loop[k] + 0.5 * t[k])
+        normals.append((-t[k, 1], t[k, 0]))
+    grad = domain.gradient(domain.project(np.array(mids)))
+    flip = np.einsum("ij,ij->i", grad, np.array(normals)) > 0
     loops = [loop[::-1] if f else loop for loop, f in zip(loops, flip, strict=True)]
     p0 = np.concatenate(loops)
     p1 = np.concatenate([np.roll(loop, -1, axis=0) for loop in loops])
-    return BRep(p0, p1, np.zeros_like(p0), np.zeros(len(p0)), np.cumsum([0] + [len(loop) for loop in loops]))
+    poly = BRep(p0, p1, np.zeros_like(p0), np.zeros(len(p0)), np.cumsum([0] + [len(loop) for loop in loops]))
+    # Every wall node (on the exact boundary) must be within the sag of the polygon: a loop the
+    # corners' tracing did not see (a hole smaller than its grid, which Step 1's finer one
+    # found) or lost would send its nodes to another loop.  Then no stand-in.
+    on = np.unique(walls)
+    if np.abs(poly.sdf(p[on])).max() > 10 * sag:
+        return None
+    return poly
 
 
 def _unfolded(loop: FloatArray, keep: NDArray[np.bool_]) -> FloatArray:
