@@ -1102,8 +1102,10 @@ def _stand_in(domain: Domain, p: FloatArray, walls: IntArray) -> Domain | None:
     corners = domain.corners()
     if len(corners):
         # First, so that the chords next to a corner lie along its sides.
+        from scipy.spatial import cKDTree
+
         a = np.concatenate(loops)
-        nearest = np.argmin(np.hypot(*(a[None, :, :] - corners[:, None, :]).transpose(2, 0, 1)), axis=1)
+        nearest = cKDTree(a).query(corners)[1]
         a[nearest] = corners
         is_corner = np.zeros(len(a), dtype=bool)
         is_corner[nearest] = True
@@ -1116,8 +1118,25 @@ def _stand_in(domain: Domain, p: FloatArray, walls: IntArray) -> Domain | None:
         loops = [loop for loop in loops if len(loop) >= 3]
         if not loops:
             return None
-    # ``pending[k][i]``: the chord from vertex i of loop k to the next is not yet known to be
-    # within sag; only those chords' midpoints are projected, in one call per halving.
+    loops = _oriented(domain, _halved(domain, loops, sag))
+    p0 = np.concatenate(loops)
+    p1 = np.concatenate([np.roll(loop, -1, axis=0) for loop in loops])
+    poly = BRep(p0, p1, np.zeros_like(p0), np.zeros(len(p0)), np.cumsum([0] + [len(loop) for loop in loops]))
+    # Every wall node (on the exact boundary) must be within the sag of the polygon: a loop the
+    # corners' tracing did not see (a hole smaller than its grid, which Step 1's finer one
+    # found) or lost would send its nodes to another loop.  Then no stand-in.
+    on = np.unique(walls)
+    if np.abs(poly.sdf(p[on])).max() > 10 * sag:
+        return None
+    return poly
+
+
+def _halved(domain: Domain, loops: list[FloatArray], sag: float) -> list[FloatArray]:
+    """``loops`` (vertices on the boundary) with every chord farther than ``sag`` from the curve
+    halved by its midpoint projected onto the boundary, again on the halves, at most
+    ``STAND_IN_HALVINGS`` times; only the chords not yet within ``sag`` are projected, in one
+    call of the domain per halving."""
+    loops = list(loops)
     pending = [np.ones(len(loop), dtype=bool) for loop in loops]
     for _ in range(STAND_IN_HALVINGS):
         rows = [np.flatnonzero(pk) for pk in pending]
@@ -1134,7 +1153,6 @@ def _stand_in(domain: Domain, p: FloatArray, walls: IntArray) -> Domain | None:
             split[r] = off[at:at + len(r)] > sag
             m = mid[at:at + len(r)][split[r]]
             at += len(r)
-            # A chord off by more than sag gains its midpoint; both halves are checked next.
             place = np.arange(len(loop)) + np.concatenate([[0], np.cumsum(split)[:-1]])
             out = np.empty((len(loop) + len(m), 2))
             out[place] = loop
@@ -1143,9 +1161,13 @@ def _stand_in(domain: Domain, p: FloatArray, walls: IntArray) -> Domain | None:
             flags[place[split]] = True
             flags[place[split] + 1] = True
             loops[k], pending[k] = out, flags
-    # The domain on the left of every piece: the left normal of each loop's longest chord
-    # against d's gradient at the chord's foot on the boundary (a local test: a probe point
-    # off the chord could land across a slit narrower than its offset).
+    return loops
+
+
+def _oriented(domain: Domain, loops: list[FloatArray]) -> list[FloatArray]:
+    """``loops`` turned so that the domain is on the left of every chord: each loop's longest
+    chord's left normal against d's gradient at its foot on the boundary (a local test; a
+    probe point off the chord could land across a slit narrower than its offset)."""
     mids, normals = [], []
     for loop in loops:
         t = np.roll(loop, -1, axis=0) - loop
@@ -1154,17 +1176,7 @@ def _stand_in(domain: Domain, p: FloatArray, walls: IntArray) -> Domain | None:
         normals.append((-t[k, 1], t[k, 0]))
     grad = domain.gradient(domain.project(np.array(mids)))
     flip = np.einsum("ij,ij->i", grad, np.array(normals)) > 0
-    loops = [loop[::-1] if f else loop for loop, f in zip(loops, flip, strict=True)]
-    p0 = np.concatenate(loops)
-    p1 = np.concatenate([np.roll(loop, -1, axis=0) for loop in loops])
-    poly = BRep(p0, p1, np.zeros_like(p0), np.zeros(len(p0)), np.cumsum([0] + [len(loop) for loop in loops]))
-    # Every wall node (on the exact boundary) must be within the sag of the polygon: a loop the
-    # corners' tracing did not see (a hole smaller than its grid, which Step 1's finer one
-    # found) or lost would send its nodes to another loop.  Then no stand-in.
-    on = np.unique(walls)
-    if np.abs(poly.sdf(p[on])).max() > 10 * sag:
-        return None
-    return poly
+    return [loop[::-1] if f else loop for loop, f in zip(loops, flip, strict=True)]
 
 
 def _unfolded(loop: FloatArray, keep: NDArray[np.bool_]) -> FloatArray:
