@@ -29,6 +29,7 @@ from .geometry.base import KernelBoundary, as_points, dedupe_points
 from .geometry.regions import Constraints, CurvesLike, RegionsLike, build_constraints
 from .geometry.tracing import grid_spacing
 from .injection import inject_nodes
+from .injection import joined_loops as _joined
 from .mesh import Mesh, MeshStats
 from .progress import Callback, compile_progress
 from .sizing import GriddedSize, SizeFunction, SizeLike, as_size_function, effective_size
@@ -1001,8 +1002,11 @@ def _injection_with_curves(
     interior_fixed = fixed[domain.sdf(fixed) < -tol.ON_BOUNDARY * domain.diameter] if len(fixed) else fixed
     seeds = np.concatenate([bnd.points, curve_pts, interior_fixed])
     # Step 2: the curves are fronts facing both ways.
-    front = _curve_front(domain, bnd, cm, ids, seeds)
-    injected = inject_nodes(domain, hc, front, seeds, max_nodes=max_nodes, callback=callback)
+    # Curves that meet the boundary advance with its front; the others first, for
+    # ``CURVE_LAYERS`` layers (see ``injection.inject_nodes``).
+    with_walls = _joined(bnd, _curve_front(domain, cm, ids, seeds, staged=False))
+    injected = inject_nodes(domain, hc, with_walls, seeds, max_nodes=max_nodes, callback=callback,
+                            curves=_curve_front(domain, cm, ids, seeds, staged=True))
     seconds["injection"] = time.perf_counter() - t
     points = np.concatenate([seeds, injected])
     t = time.perf_counter()
@@ -1089,10 +1093,12 @@ def _injection_with_curves(
     )
 
 
-def _curve_front(
-    domain: Domain, bnd: BoundaryMesh, cm: CurveMesh, ids: NDArray[np.intp], seeds: FloatArray
-) -> BoundaryMesh:
-    """The initial front of Step 2: the boundary loops, and every curve facing both ways.
+def _curve_front(domain: Domain, cm: CurveMesh, ids: NDArray[np.intp], seeds: FloatArray,
+                 staged: bool) -> BoundaryMesh:
+    """The interior curves as fronts of Step 2, every curve facing both ways: those that do
+    not meet the domain's boundary (``staged``; ``inject_nodes``' ``curves``), or those that do
+    (they advance with the boundary's own front: in the wedge between a wall and a curve
+    leaving it, the two fronts meet as a corner's do).
 
     A closed curve is two loops, one each way round.  An open curve is one flat loop, there and
     back; at an end inside the domain the loop goes round the end point (two copies a hair
@@ -1100,25 +1106,31 @@ def _curve_front(
     round the tip, as it does at a re-entrant corner.
     """
     diam = domain.diameter
-    pts, loop_id = [bnd.points], [bnd.node_loop]
-    nxt_loop = int(bnd.node_loop.max(initial=-1)) + 1
+    pts: list[FloatArray] = [np.empty((0, 2))]
+    loop_id: list[NDArray[np.intp]] = [np.empty(0, dtype=np.intp)]
+    nxt_loop = 0
     for chain, closed in cm.chains:
         p = seeds[ids[chain]]
         if closed:
             seqs = [p, p[::-1]]
+            meets = False
         else:
             tips = []
+            meets = False
             for end, before in ((p[-1], p[-2]), (p[0], p[1])):
                 t = end - before
                 t = t / max(float(np.hypot(*t)), 1e-300)
                 eps = 1e-6 * float(np.hypot(*(end - before)))
                 nrm = np.array([-t[1], t[0]])
                 inside = abs(float(domain.sdf(end[None, :])[0])) > 10 * tol.ON_BOUNDARY * diam
+                meets = meets or not inside
                 tips.append(np.stack([end + eps * nrm, end - eps * nrm]) if inside else end[None, :])
             # Out along the curve (its left side), round the far end, back (its right side),
             # round the near end.
             seqs = [np.concatenate([tips[1][-1:] if len(tips[1]) == 2 else p[:1], p[1:-1], tips[0],
                                     p[-2:0:-1], tips[1][:1] if len(tips[1]) == 2 else p[:0]])]
+        if meets == staged:
+            continue
         for s in seqs:
             pts.append(s)
             loop_id.append(np.full(len(s), nxt_loop))
