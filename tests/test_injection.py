@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from conftest import CASE_NAMES
-from injmesh import Circle, NodeBudgetError, Polygon, Rectangle
+from injmesh import Circle, NodeBudgetError, Polygon, Rectangle, generate
 from injmesh.boundary import estimate_nodes, mesh_boundary
 from injmesh.cases import CASES
 from injmesh.injection import inject_nodes
@@ -208,3 +208,15 @@ def test_the_fill_decides_the_same_with_or_without_the_distance_transform(
             out.append(_fill_gaps(dom, h, grid))
         assert np.array_equal(out[0], out[1])
         assert (len(out[0]) > 100) != inject
+
+
+def test_holes_go_first_where_h_is_uniform():
+    """With h uniform, the holes' fronts advance two layers, then the outer boundary's lattice
+    fills the square up to them (injection.INNER_LAYERS): q_mean 0.9913 when the circles'
+    ring-shaped fronts ran to the end (73 steps), 0.9961 now (46)."""
+    domain = Rectangle((0, 0), (1, 1)) - Circle((0.3, 0.3), 0.15) - Circle((0.7, 0.65), 0.2)
+    mesh = generate(domain, 0.01)
+    q = mesh.quality()
+    assert mesh.stats.valid and mesh.stats.converged
+    assert q.mean() > 0.995
+    assert q.min() > 0.8

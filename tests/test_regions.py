@@ -403,10 +403,10 @@ def test_paper_cases_with_an_inclusion_keep_their_quality(name):
 
 
 def test_inclusions_keep_the_lattice_between_them():
-    """Fronts from the inclusions advance two layers, then the boundary's lattice fills the
-    square and the lattice the circles' insides (injection.CURVE_LAYERS): at h = 0.01 the
-    mesh is as regular as the square's own away from the curves (q_mean 0.9886 when the
-    circles' ring-shaped fronts ran to the end, 0.9946 now)."""
+    """With h uniform, fronts from the inclusions advance two layers, then the boundary's
+    lattice fills the square and the lattice the circles' insides (injection.INNER_LAYERS):
+    at h = 0.01 the mesh is as regular as the square's own away from the curves (q_mean
+    0.9886 when the circles' ring-shaped fronts ran to the end, 0.9946 now)."""
     mesh = injmesh.generate(SQUARE, 0.01, regions=INCLUSIONS, curves={"crack": CRACK})
     assert_valid_mesh(mesh, SQUARE)
     q = mesh.quality()
@@ -416,9 +416,9 @@ def test_inclusions_keep_the_lattice_between_them():
 
 
 def test_a_graded_inclusion_is_filled_by_its_own_fronts():
-    """Where h is not uniform inside an inclusion no lattice suits it: the inclusion's fronts
-    resume and fill it, so the node count is that of the same disc without the region (a
-    lattice at the largest h left it half empty: 2693 nodes against 5598)."""
+    """Where h is graded every front advances together, the inclusion's too, and fills it:
+    the node count is that of the same disc without the region (a lattice at the largest h
+    left it half empty: 2693 nodes against 5598)."""
     disc = Circle((0, 0), 1)
 
     def h(p):

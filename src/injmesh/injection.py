@@ -21,20 +21,28 @@ built.  The front is a set of *chains*: polylines of nodes with the unmeshed reg
    gaps left are below about ``(MERGE + sqrt(3)/2) h`` wide and smoothing closes them.
 4. **Advance.**  The surviving runs of consecutive points are the next front.
 
-**Interior curves** (regions' boundaries, cracks; ``inject_nodes``' ``curves``) are fronts
-facing both ways.  Those that do not meet the boundary advance ``CURVE_LAYERS`` (2) layers on
-their own first, a strip of two rows along each side; then the boundary's fronts fill the
-domain up to those strips, as they would without curves; then what no front reached (the
-inside of an inclusion) is filled with the equilateral lattice where h is uniform (within
-``UNIFORM_H``), and by the curves' own fronts, resumed, elsewhere.  Advanced all together to
-the end (the former rule), fronts grown from a circle are rings whose node count changes
-every layer, re-laid each time at equal spacing: rows out of step all round, and seams where
-they meet the boundary's lattice that relaxed for a hundred steps (a 1e5-node square with two
-inclusions and a crack: 125 smoothing steps against 42 without them, q_mean 0.9896; now 50
-steps, q_mean 0.9983, q_min 0.823 -> 0.882).  Curves that meet the boundary (a crack from a
-wall, a region's side on it) advance with the boundary's front: in the wedge between a wall
-and a curve leaving it the two fronts must meet as at a corner (a crack leaving a wall at 15
-degrees got a triangle of q 0.389 next to its tip when staged, 0.446 otherwise).
+**Inner loops first, where h is uniform.**  Interior curves (regions' boundaries, cracks;
+``inject_nodes``' ``curves``) are fronts facing both ways.  When h at the nodes of every loop
+(boundary and curves) is within ``STAGED_SPREAD`` (10 %) of its smallest value, the holes and
+the curves that do not meet the boundary advance ``INNER_LAYERS`` (2) layers on their own
+first, a strip of two rows along each side; then the outer loops' fronts fill the domain up
+to those strips, as they would with no hole or curve; then what no front reached (the inside
+of an inclusion) is filled with the equilateral lattice where h is uniform (within
+``UNIFORM_H``), and by the inner fronts, resumed, elsewhere.  Advanced all together to the end
+(the rule otherwise), fronts grown from a circle are rings whose node count changes every
+layer, re-laid each time at equal spacing: rows out of step all round, and seams where they
+meet the outer lattice that relaxed for a hundred steps.  Measured at 1e5 nodes on the unit
+square (``benchmarks/regions.py``): with two circular inclusions and a crack, 125 -> 50
+smoothing steps, q_min 0.823 -> 0.882, q_mean 0.9896 -> 0.9983, 1.28 -> 0.67 s; with the same
+circles as holes, 128 -> 47 steps, q_mean 0.9928 -> 0.9989, q_min 0.880 -> 0.873, 0.80 ->
+0.42 s.  Where h is graded the fronts all advance together, as before: fronts from a fine loop
+lay the grading as they go out, while a coarse outer front arriving at a fine strip does not
+(staged, the paper's square with a hole at 2h took 209 steps against 114, size error 0.231
+against 0.198; the paper's cases are all graded and unchanged).  Curves that meet the
+boundary (a crack from a wall, a region's side on it) always advance with the outer front: in
+the wedge between a wall and a curve leaving it the two fronts must meet as at a corner (a
+crack leaving a wall at 15 degrees got a triangle of q 0.389 next to its tip when staged,
+0.446 otherwise).
 
 After the last layer, **gaps the fronts never reached are filled** (:func:`_fill_gaps`): fronts
 from a crinkled outline break into short runs that die before they meet, and the equilateral
@@ -117,6 +125,7 @@ def inject_nodes(
     max_nodes: int,
     callback: Callback | None = None,
     curves: BoundaryMesh | None = None,
+    attached: BoundaryMesh | None = None,
 ) -> FloatArray:
     """Inject interior nodes by advancing fronts from the boundary (Algorithm 4).
 
@@ -133,20 +142,22 @@ def inject_nodes(
     max_nodes : int
         Node budget.
     curves : BoundaryMesh, optional
-        Interior curves (regions' boundaries, cracks) as loops facing the way their front
-        advances (a closed curve twice, one each way; see ``pipeline._curve_front``).  New
-        nodes keep clear of their segments as of the boundary's.  They advance
-        ``CURVE_LAYERS`` layers, then the boundary's fronts fill the domain, then what they
-        did not reach (the inside of an inclusion) gets the lattice where h is uniform and
-        the curves' own fronts, resumed where they stopped, elsewhere.  See the module
-        documentation.
+        Interior curves that do not meet the boundary (regions' boundaries, free cracks), as
+        loops facing the way their front advances (a closed curve twice, one each way; see
+        ``pipeline._curve_front``).  Where h is uniform they go first with the holes (the
+        module documentation); new nodes keep clear of their segments as of the boundary's.
+    attached : BoundaryMesh, optional
+        Interior curves that meet the boundary, as loops: they advance with the outer loops.
 
     Returns
     -------
     (n, 2) array
         The injected nodes only, in injection order.
     """
-    loops = boundary if curves is None else joined_loops(boundary, curves)
+    loops = boundary
+    for more in (attached, curves):
+        if more is not None:
+            loops = _joined(loops, more)
     h_bnd = h(loops.points)
     h_min = float(h_bnd.min())
     n_loop = len(loops.points)
@@ -154,10 +165,23 @@ def inject_nodes(
         existing, loops.points) else h(existing)
     grid = _Proximity(domain, loops, existing, h_existing, h_min)
     run = _Advance(domain, h, grid, len(existing), max_nodes, callback)
-    if curves is None:
+    # Inner loops (holes, curves inside) go first only where h is the same on every loop:
+    # where it is graded, fronts advancing from the finer loops outwards lay the grading as
+    # they go, and a coarse front arriving at a fine strip does not.
+    uniform = len(h_bnd) > 0 and float(h_bnd.max()) <= (1.0 + STAGED_SPREAD) * h_min
+    inner = None
+    if uniform:
+        boundary, inner = _split_holes(boundary)
+        if curves is not None:
+            inner = _joined(inner, curves)
+    elif curves is not None:
+        boundary = _joined(boundary, curves)
+    if attached is not None:
+        boundary = _joined(boundary, attached)
+    if inner is None or len(inner.points) == 0:
         run(_loops_front(boundary), None)
     else:
-        rest = run(_loops_front(curves), CURVE_LAYERS)
+        rest = run(_loops_front(inner), INNER_LAYERS)
         run(_loops_front(boundary), None)
         # Inside a closed curve the boundary's fronts do not reach: the lattice where h is
         # uniform, the curves' own fronts where it is not.
@@ -181,13 +205,15 @@ def inject_nodes(
     return np.concatenate(run.placed) if run.placed else np.empty((0, 2))
 
 
-#: Layers the fronts of interior curves that do not meet the boundary advance before the
-#: boundary's fronts fill the domain (``inject_nodes``).  Measured on a 1e5-node unit square
-#: with two circular inclusions and a crack (``benchmarks/regions.py``), all fronts together
-#: (the former rule): 125 smoothing steps, q_min 0.823, q_mean 0.9896, 1.28 s; 1, 2, 3 layers:
-#: 48 / 50 / 52 steps, q_min 0.882 / 0.882 / 0.876, q_mean 0.9984 / 0.9983 / 0.9980, about
-#: 0.66 s.  Two give a strip of two rows on each side of an interface.
-CURVE_LAYERS = 2
+#: Layers the holes' and inner curves' fronts advance before the outer loops' fill the
+#: domain, where h is uniform (``inject_nodes``).  Measured on a 1e5-node unit square with two
+#: circular inclusions and a crack (``benchmarks/regions.py``), all fronts together: 125
+#: smoothing steps, q_min 0.823, q_mean 0.9896, 1.28 s; 1, 2, 3 layers: 48 / 50 / 52 steps,
+#: q_min 0.882 / 0.882 / 0.876, q_mean 0.9984 / 0.9983 / 0.9980, about 0.66 s.  Two give a
+#: strip of two rows on each side of an interface.
+INNER_LAYERS = 2
+#: ... when h at every loop's nodes is within this fraction of the smallest.
+STAGED_SPREAD = 0.1
 
 
 def _loops_front(loops: BoundaryMesh) -> Front:
@@ -197,7 +223,22 @@ def _loops_front(loops: BoundaryMesh) -> Front:
     return Front(loops.points, counts, np.ones(len(counts), dtype=bool))
 
 
-def joined_loops(a: BoundaryMesh, b: BoundaryMesh) -> BoundaryMesh:
+def _split_holes(b: BoundaryMesh) -> tuple[BoundaryMesh, BoundaryMesh]:
+    """The loops of ``b`` that bound the domain from outside (counter-clockwise) and the holes."""
+    p, e = b.points, b.edges
+    cross = p[e[:, 0], 0] * p[e[:, 1], 1] - p[e[:, 1], 0] * p[e[:, 0], 1]
+    hole = np.bincount(b.node_loop[e[:, 0]], weights=cross)[b.node_loop] < 0
+
+    def sub(sel: NDArray[np.bool_]) -> BoundaryMesh:
+        idx = np.flatnonzero(sel)
+        inv = np.full(len(p), -1)
+        inv[idx] = np.arange(len(idx))
+        es = e[sel[e[:, 0]]]
+        return BoundaryMesh(p[idx], inv[es], b.node_loop[idx], b.fixed[idx])
+    return sub(~hole), sub(hole)
+
+
+def _joined(a: BoundaryMesh, b: BoundaryMesh) -> BoundaryMesh:
     """Two boundary meshes as one (``b``'s nodes, edges and loops after ``a``'s)."""
     shift = int(a.node_loop.max(initial=-1)) + 1 - int(b.node_loop.min(initial=0))
     return BoundaryMesh(np.concatenate([a.points, b.points]),

@@ -29,7 +29,6 @@ from .geometry.base import KernelBoundary, as_points, dedupe_points
 from .geometry.regions import Constraints, CurvesLike, RegionsLike, build_constraints
 from .geometry.tracing import grid_spacing
 from .injection import inject_nodes
-from .injection import joined_loops as _joined
 from .mesh import Mesh, MeshStats
 from .progress import Callback, compile_progress
 from .sizing import GriddedSize, SizeFunction, SizeLike, as_size_function, effective_size
@@ -1002,11 +1001,11 @@ def _injection_with_curves(
     interior_fixed = fixed[domain.sdf(fixed) < -tol.ON_BOUNDARY * domain.diameter] if len(fixed) else fixed
     seeds = np.concatenate([bnd.points, curve_pts, interior_fixed])
     # Step 2: the curves are fronts facing both ways.
-    # Curves that meet the boundary advance with its front; the others first, for
-    # ``CURVE_LAYERS`` layers (see ``injection.inject_nodes``).
-    with_walls = _joined(bnd, _curve_front(domain, cm, ids, seeds, staged=False))
-    injected = inject_nodes(domain, hc, with_walls, seeds, max_nodes=max_nodes, callback=callback,
-                            curves=_curve_front(domain, cm, ids, seeds, staged=True))
+    # Curves that meet the boundary advance with its front; the others, where h is uniform,
+    # first (see ``injection.inject_nodes``).
+    injected = inject_nodes(domain, hc, bnd, seeds, max_nodes=max_nodes, callback=callback,
+                            curves=_curve_front(domain, cm, ids, seeds, staged=True),
+                            attached=_curve_front(domain, cm, ids, seeds, staged=False))
     seconds["injection"] = time.perf_counter() - t
     points = np.concatenate([seeds, injected])
     t = time.perf_counter()
@@ -1097,8 +1096,8 @@ def _curve_front(domain: Domain, cm: CurveMesh, ids: NDArray[np.intp], seeds: Fl
                  staged: bool) -> BoundaryMesh:
     """The interior curves as fronts of Step 2, every curve facing both ways: those that do
     not meet the domain's boundary (``staged``; ``inject_nodes``' ``curves``), or those that do
-    (they advance with the boundary's own front: in the wedge between a wall and a curve
-    leaving it, the two fronts meet as a corner's do).
+    (``attached``: they advance with the boundary's own front: in the wedge between a wall and
+    a curve leaving it, the two fronts meet as a corner's do).
 
     A closed curve is two loops, one each way round.  An open curve is one flat loop, there and
     back; at an end inside the domain the loop goes round the end point (two copies a hair
