@@ -211,7 +211,7 @@ def test_the_fill_decides_the_same_with_or_without_the_distance_transform(
 
 
 def test_holes_go_first_where_h_is_uniform():
-    """With h uniform, the holes' fronts advance two layers, then the outer boundary's lattice
+    """With h the same on every loop, the holes' fronts advance two layers, then the outer boundary's lattice
     fills the square up to them (injection.INNER_LAYERS): q_mean 0.9913 when the circles'
     ring-shaped fronts ran to the end (73 steps), 0.9961 now (46)."""
     domain = Rectangle((0, 0), (1, 1)) - Circle((0.3, 0.3), 0.15) - Circle((0.7, 0.65), 0.2)

@@ -416,7 +416,7 @@ def test_inclusions_keep_the_lattice_between_them():
 
 
 def test_a_graded_inclusion_is_filled_by_its_own_fronts():
-    """Where h is graded every front advances together, the inclusion's too, and fills it:
+    """Where h differs between loops every front advances together, the inclusion's too:
     the node count is that of the same disc without the region (a lattice at the largest h
     left it half empty: 2693 nodes against 5598)."""
     disc = Circle((0, 0), 1)

@@ -21,9 +21,10 @@ built.  The front is a set of *chains*: polylines of nodes with the unmeshed reg
    gaps left are below about ``(MERGE + sqrt(3)/2) h`` wide and smoothing closes them.
 4. **Advance.**  The surviving runs of consecutive points are the next front.
 
-**Inner loops first, where h is uniform.**  Interior curves (regions' boundaries, cracks;
-``inject_nodes``' ``curves``) are fronts facing both ways.  When h at the nodes of every loop
-(boundary and curves) is within ``STAGED_SPREAD`` (10 %) of its smallest value, the holes and
+**Inner loops first, where h is the same on every loop.**  Interior curves (regions'
+boundaries, cracks; ``inject_nodes``' ``curves``) are fronts facing both ways.  When h at the
+nodes of every loop (boundary and curves) is within ``STAGED_SPREAD`` (10 %) of its smallest
+value (a uniform h, or one graded away from every wall alike), the holes and
 the curves that do not meet the boundary advance ``INNER_LAYERS`` (2) layers on their own
 first, a strip of two rows along each side; then the outer loops' fronts fill the domain up
 to those strips, as they would with no hole or curve; then what no front reached (the inside
@@ -35,10 +36,12 @@ meet the outer lattice that relaxed for a hundred steps.  Measured at 1e5 nodes 
 square (``benchmarks/regions.py``): with two circular inclusions and a crack, 125 -> 50
 smoothing steps, q_min 0.823 -> 0.882, q_mean 0.9896 -> 0.9983, 1.28 -> 0.67 s; with the same
 circles as holes, 128 -> 47 steps, q_mean 0.9928 -> 0.9989, q_min 0.880 -> 0.873, 0.80 ->
-0.42 s.  Where h is graded the fronts all advance together, as before: fronts from a fine loop
-lay the grading as they go out, while a coarse outer front arriving at a fine strip does not
-(staged, the paper's square with a hole at 2h took 209 steps against 114, size error 0.231
-against 0.198; the paper's cases are all graded and unchanged).  Curves that meet the
+0.42 s; the NACA 0012 in a box of ``benchmarks/robustness.py --real`` (h = 0.01 + 0.3 d on
+both loops) q_min 0.679 -> 0.733.  Where h differs between loops the fronts all advance
+together, as before: fronts from a fine loop lay the grading as they go out, while a coarse
+outer front arriving at a fine strip does not (staged, the paper's square with a hole at 2h
+took 209 steps against 114, size error 0.231 against 0.198; the paper's cases, whose h
+differs between their loops, are unchanged).  Curves that meet the
 boundary (a crack from a wall, a region's side on it) always advance with the outer front: in
 the wedge between a wall and a curve leaving it the two fronts must meet as at a corner (a
 crack leaving a wall at 15 degrees got a triangle of q 0.389 next to its tip when staged,
@@ -144,7 +147,7 @@ def inject_nodes(
     curves : BoundaryMesh, optional
         Interior curves that do not meet the boundary (regions' boundaries, free cracks), as
         loops facing the way their front advances (a closed curve twice, one each way; see
-        ``pipeline._curve_front``).  Where h is uniform they go first with the holes (the
+        ``pipeline._curve_front``).  Where h is the same on every loop they go first with the holes (the
         module documentation); new nodes keep clear of their segments as of the boundary's.
     attached : BoundaryMesh, optional
         Interior curves that meet the boundary, as loops: they advance with the outer loops.
@@ -166,7 +169,7 @@ def inject_nodes(
     grid = _Proximity(domain, loops, existing, h_existing, h_min)
     run = _Advance(domain, h, grid, len(existing), max_nodes, callback)
     # Inner loops (holes, curves inside) go first only where h is the same on every loop:
-    # where it is graded, fronts advancing from the finer loops outwards lay the grading as
+    # where it differs, fronts advancing from the finer loops outwards lay the grading as
     # they go, and a coarse front arriving at a fine strip does not.
     uniform = len(h_bnd) > 0 and float(h_bnd.max()) <= (1.0 + STAGED_SPREAD) * h_min
     inner = None
@@ -206,7 +209,7 @@ def inject_nodes(
 
 
 #: Layers the holes' and inner curves' fronts advance before the outer loops' fill the
-#: domain, where h is uniform (``inject_nodes``).  Measured on a 1e5-node unit square with two
+#: domain, where h is the same on every loop (``inject_nodes``).  Measured on a 1e5-node unit square with two
 #: circular inclusions and a crack (``benchmarks/regions.py``), all fronts together: 125
 #: smoothing steps, q_min 0.823, q_mean 0.9896, 1.28 s; 1, 2, 3 layers: 48 / 50 / 52 steps,
 #: q_min 0.882 / 0.882 / 0.876, q_mean 0.9984 / 0.9983 / 0.9980, about 0.66 s.  Two give a
