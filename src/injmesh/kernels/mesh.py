@@ -735,3 +735,63 @@ def renew_neighbours(tri, nbr, rows):  # type: ignore[no-untyped-def]
             twin = np.int64(tri[t, (k + 2) % 3]) * base + tri[t, (k + 1) % 3]
             j = np.searchsorted(sk, twin)
             nbr[t, k] = s[order[j] // 3] if j < sk.shape[0] and sk[j] == twin else -1
+
+
+@njit(cache=True)
+def curve_groups(tri, nbr, seg, n):  # type: ignore[no-untyped-def]
+    """Triangles grouped by flood fill across every edge that is not a segment of ``seg``,
+    and the triangle on each segment's left (holding a -> b) and right (b -> a), -1 if none.
+
+    Returns (label (m,), number of groups, left (k,), right (k,)); groups are numbered in
+    order of their lowest triangle.
+    """
+    m = tri.shape[0]
+    w = seg.shape[0]
+    # Segments filed under their smaller vertex (as classify_by_walls files walls).
+    start = np.zeros(n + 1, dtype=np.int64)
+    for i in range(w):
+        start[min(seg[i, 0], seg[i, 1]) + 1] += 1
+    for v in range(n):
+        start[v + 1] += start[v]
+    fill = start[:n].copy()
+    sid = np.empty(w, dtype=np.int64)
+    for i in range(w):
+        lo = min(seg[i, 0], seg[i, 1])
+        sid[fill[lo]] = i
+        fill[lo] += 1
+    barrier = np.zeros((m, 3), dtype=np.bool_)
+    left = np.full(w, -1, dtype=np.int64)
+    right = np.full(w, -1, dtype=np.int64)
+    for t in range(m):
+        for k in range(3):
+            u = tri[t, (k + 1) % 3]
+            v = tri[t, (k + 2) % 3]
+            lo = min(u, v)
+            for s in range(start[lo], start[lo + 1]):
+                i = sid[s]
+                if seg[i, 0] == u and seg[i, 1] == v:
+                    barrier[t, k] = True
+                    left[i] = t
+                elif seg[i, 0] == v and seg[i, 1] == u:
+                    barrier[t, k] = True
+                    right[i] = t
+    label = np.full(m, -1, dtype=np.int64)
+    stack = np.empty(m, dtype=np.int64)
+    n_lab = 0
+    for first in range(m):
+        if label[first] >= 0:
+            continue
+        label[first] = n_lab
+        sp = 1
+        stack[0] = first
+        while sp > 0:
+            sp -= 1
+            t = stack[sp]
+            for k in range(3):
+                u = nbr[t, k]
+                if u >= 0 and not barrier[t, k] and label[u] < 0:
+                    label[u] = n_lab
+                    stack[sp] = u
+                    sp += 1
+        n_lab += 1
+    return label, n_lab, left, right
