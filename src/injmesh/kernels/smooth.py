@@ -1069,7 +1069,7 @@ def _query_of(q, kinds, shapes, origins, cat, offs, t, foot):  # type: ignore[no
 
 
 @njit(cache=True)
-def _project_rows(target, kinds, shapes, origins, cat, offs, points, out):  # type: ignore[no-untyped-def]
+def project_rows(target, kinds, shapes, origins, cat, offs, points, out):  # type: ignore[no-untyped-def]
     """Each point onto boundary ``target[r]`` (0: the domain's), into ``out``: one query per
     boundary on its points in row order, as the Python projectors are called (on a B-rep
     the foot of an exact tie depends on the points queried before it)."""
@@ -1148,7 +1148,7 @@ def run_steps(p, moving, free, indptr, adj, eid, ld, attraction, total, damp, hb
                                                 drift, count)
         if n_sl:
             slide_targets(p, slide, total, hbar, ld_prev, ld_next, dt, step_to)
-            _project_rows(target, kinds, shapes, origins, cat, offs, step_to, cand_sl)
+            project_rows(target, kinds, shapes, origins, cat, offs, step_to, cand_sl)
             slide_accept(p, slide, hbar, cand_sl, moved)
             worst, at, drift, count = fold_moves(sl_nodes, moved, p, anchor, hbar, tol, worst, at,
                                                  drift, count)
@@ -1326,7 +1326,7 @@ def optimize_trials(p, tri, start, corner, move, target, star, prev_b, next_b, o
         if n_bnd:
             for k in range(n_bnd):
                 bq[k, 0], bq[k, 1] = step[bnd_rows[k], 0], step[bnd_rows[k], 1]
-            _project_rows(bnd_target, kinds, shapes, origins, cat, offs, bq, bf)
+            project_rows(bnd_target, kinds, shapes, origins, cat, offs, bq, bf)
             for k in range(n_bnd):
                 step[bnd_rows[k], 0], step[bnd_rows[k], 1] = bf[k, 0], bf[k, 1]
         n_ask = 0
