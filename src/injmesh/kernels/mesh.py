@@ -318,17 +318,7 @@ def edges_present(tri, pairs, n):  # type: ignore[no-untyped-def]
     triangles, no adjacency of the whole mesh.
     """
     k = pairs.shape[0]
-    start = np.zeros(n + 1, dtype=np.int64)
-    for r in range(k):
-        start[min(pairs[r, 0], pairs[r, 1]) + 1] += 1
-    for i in range(n):
-        start[i + 1] += start[i]
-    fill = start[:-1].copy()
-    row = np.empty(k, dtype=np.int64)
-    for r in range(k):
-        lo = min(pairs[r, 0], pairs[r, 1])
-        row[fill[lo]] = r
-        fill[lo] += 1
+    start, row = _filed_pairs(pairs, n)
     found = np.zeros(k, dtype=np.bool_)
     for t in range(tri.shape[0]):
         for c in range(3):
@@ -548,58 +538,10 @@ def classify_by_walls(tri, nbr, walls, n):  # type: ignore[no-untyped-def]
     Returns (inside, open) boolean arrays.
     """
     m = tri.shape[0]
-    w = walls.shape[0]
-    # Walls filed under their smaller vertex.
-    start = np.zeros(n + 1, dtype=np.int64)
-    for i in range(w):
-        start[min(walls[i, 0], walls[i, 1]) + 1] += 1
-    for v in range(n):
-        start[v + 1] += start[v]
-    fill = start[:n].copy()
-    wid = np.empty(w, dtype=np.int64)
-    for i in range(w):
-        lo = min(walls[i, 0], walls[i, 1])
-        wid[fill[lo]] = i
-        fill[lo] += 1
     # Per half-edge: is it a wall, and is the triangle on a wall's left (+1) or right (-1)?
-    is_wall = np.zeros((m, 3), dtype=np.bool_)
-    left = np.zeros(m, dtype=np.bool_)
-    right = np.zeros(m, dtype=np.bool_)
-    for t in range(m):
-        for k in range(3):
-            u = tri[t, (k + 1) % 3]
-            v = tri[t, (k + 2) % 3]
-            lo = min(u, v)
-            for s in range(start[lo], start[lo + 1]):
-                i = wid[s]
-                a = walls[i, 0]
-                b = walls[i, 1]
-                if a == u and b == v:
-                    is_wall[t, k] = True
-                    left[t] = True
-                elif a == v and b == u:
-                    is_wall[t, k] = True
-                    right[t] = True
+    is_wall, left, right, _, _ = _on_pairs(tri, walls, n)
     # Connected regions across non-wall edges, labelled in order of their lowest triangle.
-    label = np.full(m, -1, dtype=np.int64)
-    stack = np.empty(m, dtype=np.int64)
-    n_lab = 0
-    for seed in range(m):
-        if label[seed] >= 0:
-            continue
-        label[seed] = n_lab
-        sp = 1
-        stack[0] = seed
-        while sp > 0:
-            sp -= 1
-            t = stack[sp]
-            for k in range(3):
-                u = nbr[t, k]
-                if u >= 0 and not is_wall[t, k] and label[u] < 0:
-                    label[u] = n_lab
-                    stack[sp] = u
-                    sp += 1
-        n_lab += 1
+    label, n_lab = _flood(nbr, is_wall)
     seen_in = np.zeros(n_lab, dtype=np.bool_)
     seen_out = np.zeros(n_lab, dtype=np.bool_)
     for t in range(m):
@@ -745,45 +687,73 @@ def curve_groups(tri, nbr, seg, n):  # type: ignore[no-untyped-def]
     Returns (label (m,), number of groups, left (k,), right (k,)); groups are numbered in
     order of their lowest triangle.
     """
-    m = tri.shape[0]
-    w = seg.shape[0]
-    # Segments filed under their smaller vertex (as classify_by_walls files walls).
+    barrier, _, _, left, right = _on_pairs(tri, seg, n)
+    label, n_lab = _flood(nbr, barrier)
+    return label, n_lab, left, right
+
+
+@njit(cache=True)
+def _filed_pairs(pairs, n):  # type: ignore[no-untyped-def]
+    """Rows of ``pairs (k, 2)`` filed under their smaller vertex: (start (n+1,), row ids)."""
+    w = pairs.shape[0]
     start = np.zeros(n + 1, dtype=np.int64)
     for i in range(w):
-        start[min(seg[i, 0], seg[i, 1]) + 1] += 1
+        start[min(pairs[i, 0], pairs[i, 1]) + 1] += 1
     for v in range(n):
         start[v + 1] += start[v]
     fill = start[:n].copy()
-    sid = np.empty(w, dtype=np.int64)
+    ids = np.empty(w, dtype=np.int64)
     for i in range(w):
-        lo = min(seg[i, 0], seg[i, 1])
-        sid[fill[lo]] = i
+        lo = min(pairs[i, 0], pairs[i, 1])
+        ids[fill[lo]] = i
         fill[lo] += 1
-    barrier = np.zeros((m, 3), dtype=np.bool_)
-    left = np.full(w, -1, dtype=np.int64)
-    right = np.full(w, -1, dtype=np.int64)
+    return start, ids
+
+
+@njit(cache=True)
+def _on_pairs(tri, pairs, n):  # type: ignore[no-untyped-def]
+    """Which half-edges of ``tri`` are rows of ``pairs (k, 2)`` (either way): (flags (m, 3),
+    triangles holding a pair a -> b (m,), holding b -> a (m,), the last triangle holding each
+    row a -> b (k,), b -> a (k,), -1 if none)."""
+    m = tri.shape[0]
+    start, ids = _filed_pairs(pairs, n)
+    on = np.zeros((m, 3), dtype=np.bool_)
+    left = np.zeros(m, dtype=np.bool_)
+    right = np.zeros(m, dtype=np.bool_)
+    left_of = np.full(pairs.shape[0], -1, dtype=np.int64)
+    right_of = np.full(pairs.shape[0], -1, dtype=np.int64)
     for t in range(m):
         for k in range(3):
             u = tri[t, (k + 1) % 3]
             v = tri[t, (k + 2) % 3]
             lo = min(u, v)
             for s in range(start[lo], start[lo + 1]):
-                i = sid[s]
-                if seg[i, 0] == u and seg[i, 1] == v:
-                    barrier[t, k] = True
-                    left[i] = t
-                elif seg[i, 0] == v and seg[i, 1] == u:
-                    barrier[t, k] = True
-                    right[i] = t
+                i = ids[s]
+                if pairs[i, 0] == u and pairs[i, 1] == v:
+                    on[t, k] = True
+                    left[t] = True
+                    left_of[i] = t
+                elif pairs[i, 0] == v and pairs[i, 1] == u:
+                    on[t, k] = True
+                    right[t] = True
+                    right_of[i] = t
+    return on, left, right, left_of, right_of
+
+
+@njit(cache=True)
+def _flood(nbr, barrier):  # type: ignore[no-untyped-def]
+    """Triangles labelled by flood fill across the edges not flagged in ``barrier (m, 3)``, in
+    order of their lowest triangle: (label (m,), number of labels)."""
+    m = nbr.shape[0]
     label = np.full(m, -1, dtype=np.int64)
     stack = np.empty(m, dtype=np.int64)
     n_lab = 0
-    for first in range(m):
-        if label[first] >= 0:
+    for seed in range(m):
+        if label[seed] >= 0:
             continue
-        label[first] = n_lab
+        label[seed] = n_lab
         sp = 1
-        stack[0] = first
+        stack[0] = seed
         while sp > 0:
             sp -= 1
             t = stack[sp]
@@ -794,4 +764,4 @@ def curve_groups(tri, nbr, seg, n):  # type: ignore[no-untyped-def]
                     stack[sp] = u
                     sp += 1
         n_lab += 1
-    return label, n_lab, left, right
+    return label, n_lab
