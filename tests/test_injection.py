@@ -220,3 +220,23 @@ def test_holes_go_first_where_h_is_uniform():
     assert mesh.stats.valid and mesh.stats.converged
     assert q.mean() > 0.995
     assert q.min() > 0.8
+
+
+def test_only_straight_outer_walls_stage_their_holes():
+    """Holes go first only inside mostly straight outer walls (``injection._straight``): a
+    curved wall's fronts are rings too, and an annulus staged lost q_mean."""
+    from injmesh.boundary import BoundaryMesh
+    from injmesh.injection import _straight
+
+    def loop(points):
+        n = len(points)
+        idx = np.arange(n)
+        return BoundaryMesh(np.asarray(points, dtype=float), np.stack([idx, (idx + 1) % n], axis=1),
+                            np.zeros(n, dtype=np.intp), np.zeros(n, dtype=bool))
+
+    t = np.linspace(0, 1, 10, endpoint=False)
+    square = np.concatenate([np.stack([t, 0 * t], 1), np.stack([1 + 0 * t, t], 1),
+                             np.stack([1 - t, 1 + 0 * t], 1), np.stack([0 * t, 1 - t], 1)])
+    a = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    assert _straight(loop(square))
+    assert not _straight(loop(np.stack([np.cos(a), np.sin(a)], 1)))
