@@ -21,35 +21,42 @@ built.  The front is a set of *chains*: polylines of nodes with the unmeshed reg
    gaps left are below about ``(MERGE + sqrt(3)/2) h`` wide and smoothing closes them.
 4. **Advance.**  The surviving runs of consecutive points are the next front.
 
-**Inner loops first, where h is the same on every loop.**  Interior curves (regions'
-boundaries, cracks; ``inject_nodes``' ``curves``) are fronts facing both ways.  When h at the
-nodes of every loop (boundary and curves) is within ``STAGED_SPREAD`` (10 %) of its smallest
-value (a uniform h, or one graded away from every wall alike) and the outer loops are mostly
-straight (half their nodes turning less than ``STRAIGHT_TURN``), the holes and
-the curves that do not meet the boundary advance ``INNER_LAYERS`` (2) layers on their own
-first, a strip of two rows along each side; then the outer loops' fronts fill the domain up
-to those strips, as they would with no hole or curve; then what no front reached (the inside
-of an inclusion) is filled with the equilateral lattice where h is uniform (within
-``UNIFORM_H``), and by the inner fronts, resumed, elsewhere.  Advanced all together to the end
-(the rule otherwise), fronts grown from a circle are rings whose node count changes every
-layer, re-laid each time at equal spacing: rows out of step all round, and seams where they
-meet the outer lattice that relaxed for a hundred steps.  Measured at 1e5 nodes on the unit
-square (``benchmarks/regions.py``): with two circular inclusions and a crack, 125 -> 50
-smoothing steps, q_min 0.823 -> 0.882, q_mean 0.9896 -> 0.9983, 1.28 -> 0.67 s; with the same
-circles as holes, 128 -> 47 steps, q_mean 0.9928 -> 0.9989, q_min 0.880 -> 0.873, 0.80 ->
-0.42 s; the NACA 0012 in a box of ``benchmarks/robustness.py --real`` (h = 0.01 + 0.3 d on
-both loops) q_min 0.679 -> 0.733.  Where h differs between loops the fronts all advance
-together, as before: fronts from a fine loop lay the grading as they go out, while a coarse
-outer front arriving at a fine strip does not (staged, the paper's square with a hole at 2h
-took 209 steps against 114, size error 0.231 against 0.198; the paper's cases, whose h
-differs between their loops, are unchanged).  A curved outer wall's fronts are rings as
-well, with no lattice for the inner strips to wait for: an annulus staged took 201 steps
-against 233 but lost 0.002 of q_mean, an off-centre hole in a disc 255 against 232 and 0.003;
-so those advance together too.  Curves that meet the
-boundary (a crack from a wall, a region's side on it) always advance with the outer front: in
-the wedge between a wall and a curve leaving it the two fronts must meet as at a corner (a
-crack leaving a wall at 15 degrees got a triangle of q 0.389 next to its tip when staged,
-0.446 otherwise).
+**Strips first, then a lattice, where h is the same on every loop.**  Interior curves
+(regions' boundaries, cracks; ``inject_nodes``' ``curves``) are fronts facing both ways.
+Advanced all together to the end (the rule otherwise), fronts grown from a circle are rings
+whose node count changes every layer, re-laid each time at equal spacing: rows out of step
+all round, and seams where they meet that relaxed for a hundred smoothing steps.  So when h
+at the nodes of every loop (boundary and curves) is within ``STAGED_SPREAD`` (10 %) of its
+smallest value (a uniform h, or one graded away from every wall alike):
+
+* if the outer loops are mostly straight (half their nodes turning less than
+  ``STRAIGHT_TURN``), the holes and the curves that do not meet the boundary advance
+  ``INNER_LAYERS`` (2) layers first, a strip of two rows along each side, and then the outer
+  loops' fronts fill the domain up to those strips: along straight walls they lay a lattice
+  themselves;
+* if they are curved, their fronts are rings as well, so every loop only lays its strip;
+
+then what no front reached is filled with the equilateral lattice, if h is uniform over all
+of it (within ``UNIFORM_H`` of the lattice's spacing at every lattice point inside: a band of
+lattice where h happens to match would wall the rest in), and the strips' fronts resume to
+fill whatever is left (all of it where h is not uniform).  Measured at 1e5 nodes
+(``benchmarks/regions.py``), the unit square with two circular inclusions and a crack: 125
+-> 50 smoothing steps, q_min 0.823 -> 0.882, q_mean 0.9896 -> 0.9983; with the same circles
+as holes 128 -> 47 steps, q_mean 0.9928 -> 0.9989, 0.80 -> 0.42 s.  A disc at h = 0.005
+(146,000 nodes): 209 -> 47 steps, 2.2 -> 0.62 s, q_mean 0.979 -> 0.9995, q_min 0.789 ->
+0.829; an annulus (123,000): 233 -> 48 steps, 2.2 -> 0.59 s, q_mean 0.981 -> 0.999.  The
+NACA 0012 in a box of ``benchmarks/robustness.py --real`` (h = 0.01 + 0.3 d on both loops)
+q_min 0.679 -> 0.733.  (Staging the holes inside a curved outer wall whose fronts then ran
+to the end gained nothing: an annulus lost 0.002 of q_mean.)  Where h differs between loops
+the fronts all advance together, as before: fronts from a fine loop lay the grading as they
+go out, while a coarse front arriving at a fine strip does not (staged, the paper's square
+with a hole at 2h took 209 steps against 114); the paper's cases, whose h differs between
+their loops, are unchanged, and so is a disc graded 20:1 from its centre (its h is the same
+on its one loop, but no lattice suits its interior).  Curves that meet the boundary (a crack
+from a wall, a region's side on it) always advance with the outer front: in the wedge
+between a wall and a curve leaving it the two fronts must meet as at a corner (a crack
+leaving a wall at 15 degrees got a triangle of q 0.389 next to its tip when staged, 0.446
+otherwise).
 
 After the last layer, **gaps the fronts never reached are filled** (:func:`_fill_gaps`): fronts
 from a crinkled outline break into short runs that die before they meet, and the equilateral
@@ -182,6 +189,11 @@ def inject_nodes(
         boundary, inner = outer, holes
         if curves is not None:
             inner = _joined(inner, curves)
+    elif holes is not None:
+        # A curved outer wall's fronts are rings too: every loop lays its strip, and the
+        # lattice fills the rest where h is uniform there.
+        inner = boundary if curves is None else _joined(boundary, curves)
+        boundary = _no_loops()
     elif curves is not None:
         boundary = _joined(boundary, curves)
     if attached is not None:
@@ -222,11 +234,9 @@ def inject_nodes(
 INNER_LAYERS = 2
 #: ... when h at every loop's nodes is within this fraction of the smallest.
 STAGED_SPREAD = 0.1
-#: ... and when at least half the outer loops' nodes turn less than this (radians): outer
-#: fronts from a curved wall are rings too, and an annulus staged gained nothing (h = 0.005:
-#: 233 -> 201 steps but q_mean 0.9806 -> 0.9786; off-centre hole 232 -> 255, 0.9834 ->
-#: 0.9801), where a perforated square plate gained much (5 x 5 holes, h = 0.005: 88 -> 47
-#: steps, 0.53 -> 0.30 s, q_mean 0.984 -> 0.995).
+#: Outer loops with at least half their nodes turning less than this (radians) lay a lattice
+#: with their own fronts, and only the holes and inner curves go first; otherwise every loop
+#: lays its strip and the lattice fills the rest (see the module documentation).
 STRAIGHT_TURN = 1e-3
 
 
@@ -235,6 +245,11 @@ def _loops_front(loops: BoundaryMesh) -> Front:
     counts = np.bincount(loops.node_loop - loops.node_loop.min(initial=0))
     counts = counts[counts > 0]
     return Front(loops.points, counts, np.ones(len(counts), dtype=bool))
+
+
+def _no_loops() -> BoundaryMesh:
+    return BoundaryMesh(np.empty((0, 2)), np.empty((0, 2), dtype=np.intp), np.empty(0, dtype=np.intp),
+                        np.empty(0, dtype=bool))
 
 
 def _straight(loops: BoundaryMesh) -> bool:
@@ -419,6 +434,11 @@ def _fill_gaps(domain: Domain, h: SizeFn, grid: _Proximity, uniform: bool = Fals
             if len(q):
                 inside, hq, d = _suited(domain, h, q, s, first)
                 if uniform:
+                    # The lattice only where h is uniform over all that is left: a band of it
+                    # would wall in the rest from the fronts that resume (a graded disc, its
+                    # loop staged: 10,278 nodes for 1e5).
+                    if np.any((d < 0) & (np.abs(hq - s) > UNIFORM_H * s)):
+                        return np.empty((0, 2))
                     inside &= np.abs(hq - s) <= UNIFORM_H * s
                 if exact:
                     far = d > math.sqrt(2.0) * s
