@@ -210,21 +210,9 @@ def test_the_fill_decides_the_same_with_or_without_the_distance_transform(
         assert (len(out[0]) > 100) != inject
 
 
-def test_holes_go_first_where_h_is_uniform():
-    """With h the same on every loop, the holes' fronts advance two layers, then the outer boundary's lattice
-    fills the square up to them (injection.INNER_LAYERS): q_mean 0.9913 when the circles'
-    ring-shaped fronts ran to the end (73 steps), 0.9961 now (46)."""
-    domain = Rectangle((0, 0), (1, 1)) - Circle((0.3, 0.3), 0.15) - Circle((0.7, 0.65), 0.2)
-    mesh = generate(domain, 0.01)
-    q = mesh.quality()
-    assert mesh.stats.valid and mesh.stats.converged
-    assert q.mean() > 0.995
-    assert q.min() > 0.8
-
-
 def test_only_straight_outer_walls_stage_their_holes():
-    """Holes go first only inside mostly straight outer walls (``injection._straight``): a
-    curved wall's fronts are rings too, and an annulus staged lost q_mean."""
+    """``injection._straight`` tells straight outer walls, whose fronts lay a lattice and whose
+    holes alone go first, from curved ones, whose fronts are rings and which lay a strip too."""
     from injmesh.boundary import BoundaryMesh
     from injmesh.injection import _straight
 
@@ -242,13 +230,17 @@ def test_only_straight_outer_walls_stage_their_holes():
     assert not _straight(loop(np.stack([np.cos(a), np.sin(a)], 1)))
 
 
-@pytest.mark.parametrize("domain", [Circle((0, 0), 1), Circle((0, 0), 1) - Circle((0.3, 0.1), 0.3)],
-                         ids=["disc", "off-centre annulus"])
-def test_curved_walls_lay_strips_and_a_lattice_where_h_is_uniform(domain):
-    """With h uniform inside curved walls every loop lays a two-row strip and the lattice fills
-    the rest (injection.INNER_LAYERS): ring fronts to the end gave q_mean 0.9845 / 0.9860 at
-    h = 0.02 (128 / 113 steps), now 0.9976 / 0.9962 (48 / 49)."""
-    mesh = generate(domain, 0.02)
+@pytest.mark.parametrize(("domain", "h"), [
+    (Rectangle((0, 0), (1, 1)) - Circle((0.3, 0.3), 0.15) - Circle((0.7, 0.65), 0.2), 0.01),
+    (Circle((0, 0), 1), 0.02),
+    (Circle((0, 0), 1) - Circle((0.3, 0.1), 0.3), 0.02),
+], ids=["square with two holes", "disc", "off-centre annulus"])
+def test_loops_lay_strips_and_a_lattice_where_h_is_uniform(domain, h):
+    """With h the same on every loop, the holes (inside straight walls) or every loop (inside
+    curved ones) lay a two-row strip first, then a lattice fills the rest
+    (injection.INNER_LAYERS): ring fronts to the end gave q_mean 0.9913 / 0.9845 / 0.9860
+    (73 / 128 / 113 steps), now 0.9961 / 0.9976 / 0.9962 (46 / 48 / 49)."""
+    mesh = generate(domain, h)
     q = mesh.quality()
     assert mesh.stats.valid and mesh.stats.converged
     assert q.mean() > 0.995
