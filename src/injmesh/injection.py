@@ -182,44 +182,29 @@ def inject_nodes(
     # Inner loops (holes, curves inside) go first only where h is the same on every loop:
     # where it differs, fronts advancing from the finer loops outwards lay the grading as
     # they go, and a coarse front arriving at a fine strip does not.
-    uniform = len(h_bnd) > 0 and float(h_bnd.max()) <= (1.0 + STAGED_SPREAD) * h_min
-    inner = None
-    outer, holes = _split_holes(boundary) if uniform else (boundary, None)
-    if holes is not None and _straight(outer):
-        boundary, inner = outer, holes
+    inner = _no_loops()
+    if len(h_bnd) > 0 and float(h_bnd.max()) <= (1.0 + STAGED_SPREAD) * h_min:
+        outer, holes = _split_holes(boundary)
+        # A curved outer wall's fronts are rings too: then every loop lays its strip.
+        boundary, inner = (outer, holes) if _straight(outer) else (_no_loops(), boundary)
         if curves is not None:
             inner = _joined(inner, curves)
-    elif holes is not None:
-        # A curved outer wall's fronts are rings too: every loop lays its strip, and the
-        # lattice fills the rest where h is uniform there.
-        inner = boundary if curves is None else _joined(boundary, curves)
-        boundary = _no_loops()
     elif curves is not None:
         boundary = _joined(boundary, curves)
     if attached is not None:
         boundary = _joined(boundary, attached)
-    if inner is None or len(inner.points) == 0:
+    if len(inner.points) == 0:
         run(_loops_front(boundary), None)
     else:
         rest = run(_loops_front(inner), INNER_LAYERS)
         run(_loops_front(boundary), None)
-        # Inside a closed curve the boundary's fronts do not reach: the lattice where h is
-        # uniform, the curves' own fronts where it is not.
-        lattice = _fill_gaps(domain, h, grid, uniform=True)
-        if len(lattice):
-            run.placed.append(lattice)
-            run.n_placed += len(lattice)
-            if run.n_placed > max_nodes:
-                raise NodeBudgetError(f"node injection passed max_nodes={max_nodes} (filling inclusions)")
+        # What the outer fronts do not reach (inside an inclusion, inside a curved wall): the
+        # lattice where h is uniform, the strips' own fronts where it is not.
+        run.add(_fill_gaps(domain, h, grid, uniform=True), "filling what the strips left")
         run(rest, None)
     # Fronts from a crinkled outline break into short runs that die before they meet: fill
     # what they left empty.
-    filled = _fill_gaps(domain, h, grid)
-    if len(filled):
-        run.placed.append(filled)
-        run.n_placed += len(filled)
-        if run.n_placed > max_nodes:
-            raise NodeBudgetError(f"node injection passed max_nodes={max_nodes} (filling gaps)")
+    run.add(_fill_gaps(domain, h, grid), "filling gaps")
     # The layer count is not known in advance: close the progress at 100 %.
     report(callback, "injection", run.layer + 1, run.layer + 1, nodes=run.n_placed, front=0)
     return np.concatenate(run.placed) if run.placed else np.empty((0, 2))
@@ -304,6 +289,15 @@ class _Advance:
         self.n_placed = n_existing
         self.layer = 0
 
+    def add(self, points: FloatArray, where: str) -> None:
+        """Take the admitted ``points``, within the node budget."""
+        if not len(points):
+            return
+        self.placed.append(points)
+        self.n_placed += len(points)
+        if self.n_placed > self.max_nodes:
+            raise NodeBudgetError(f"node injection passed max_nodes={self.max_nodes} ({where})")
+
     def __call__(self, front: Front, layers: int | None) -> Front:
         """Advance ``front`` until it is exhausted, or ``layers`` layers; the front left."""
         domain, h, grid = self.domain, self.h, self.grid
@@ -319,11 +313,7 @@ class _Advance:
                 return _survivors(cand, keep)
             max_layers = _layer_cap(domain, grid.h_min)
             front = _survivors(cand, keep)
-            self.placed.append(front.points)
-            self.n_placed += len(front.points)
-            if self.n_placed > self.max_nodes:
-                raise NodeBudgetError(
-                    f"node injection passed max_nodes={self.max_nodes} (layer {self.layer})")
+            self.add(front.points, f"layer {self.layer}")
             # Progress against the layers the smallest h so far would need (the cap is twice that).
             report(self.callback, "injection", self.layer, max(self.layer + 1, max_layers // 2),
                    nodes=self.n_placed, front=len(front))
@@ -340,8 +330,8 @@ FILL_CELLS = 1 << 22
 #: times that.
 FILL_H = 0.75
 FILL_NEAR = 4.0
-#: Inside a closed interior curve (``inject_nodes``), the lattice of spacing s is laid where h
-#: is within this fraction of s.
+#: The lattice that fills what the strips left (``inject_nodes``) is laid only where h is
+#: within this fraction of its spacing s everywhere.
 UNIFORM_H = 0.05
 #: Each row of a gap-filling lattice is shifted along x by this fraction of s times its row
 #: number: exactly, rows r and r + 2 line up and every rectangle of four lattice points is

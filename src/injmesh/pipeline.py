@@ -1001,11 +1001,11 @@ def _injection_with_curves(
     interior_fixed = fixed[domain.sdf(fixed) < -tol.ON_BOUNDARY * domain.diameter] if len(fixed) else fixed
     seeds = np.concatenate([bnd.points, curve_pts, interior_fixed])
     # Step 2: the curves are fronts facing both ways.
-    # Curves that meet the boundary advance with its front; the others, where h is uniform,
-    # first (see ``injection.inject_nodes``).
+    # Curves that meet the boundary advance with its front; the others, where h is the same on
+    # every loop, first (see ``injection.inject_nodes``).
+    inside, attached = _curve_fronts(domain, cm, ids, seeds)
     injected = inject_nodes(domain, hc, bnd, seeds, max_nodes=max_nodes, callback=callback,
-                            curves=_curve_front(domain, cm, ids, seeds, staged=True),
-                            attached=_curve_front(domain, cm, ids, seeds, staged=False))
+                            curves=inside, attached=attached)
     seconds["injection"] = time.perf_counter() - t
     points = np.concatenate([seeds, injected])
     t = time.perf_counter()
@@ -1092,10 +1092,10 @@ def _injection_with_curves(
     )
 
 
-def _curve_front(domain: Domain, cm: CurveMesh, ids: NDArray[np.intp], seeds: FloatArray,
-                 staged: bool) -> BoundaryMesh:
+def _curve_fronts(domain: Domain, cm: CurveMesh, ids: NDArray[np.intp],
+                  seeds: FloatArray) -> tuple[BoundaryMesh, BoundaryMesh]:
     """The interior curves as fronts of Step 2, every curve facing both ways: those that do
-    not meet the domain's boundary (``staged``; ``inject_nodes``' ``curves``), or those that do
+    not meet the domain's boundary (``inject_nodes``' ``curves``), and those that do
     (``attached``: they advance with the boundary's own front: in the wedge between a wall and
     a curve leaving it, the two fronts meet as a corner's do).
 
@@ -1105,37 +1105,36 @@ def _curve_front(domain: Domain, cm: CurveMesh, ids: NDArray[np.intp], seeds: Fl
     round the tip, as it does at a re-entrant corner.
     """
     diam = domain.diameter
-    pts: list[FloatArray] = [np.empty((0, 2))]
-    loop_id: list[NDArray[np.intp]] = [np.empty(0, dtype=np.intp)]
-    nxt_loop = 0
+    loops: tuple[list[FloatArray], list[FloatArray]] = ([], [])
     for chain, closed in cm.chains:
         p = seeds[ids[chain]]
         if closed:
-            seqs = [p, p[::-1]]
-            meets = False
-        else:
-            tips = []
-            meets = False
-            for end, before in ((p[-1], p[-2]), (p[0], p[1])):
-                t = end - before
-                t = t / max(float(np.hypot(*t)), 1e-300)
-                eps = 1e-6 * float(np.hypot(*(end - before)))
-                nrm = np.array([-t[1], t[0]])
-                inside = abs(float(domain.sdf(end[None, :])[0])) > 10 * tol.ON_BOUNDARY * diam
-                meets = meets or not inside
-                tips.append(np.stack([end + eps * nrm, end - eps * nrm]) if inside else end[None, :])
-            # Out along the curve (its left side), round the far end, back (its right side),
-            # round the near end.
-            seqs = [np.concatenate([tips[1][-1:] if len(tips[1]) == 2 else p[:1], p[1:-1], tips[0],
-                                    p[-2:0:-1], tips[1][:1] if len(tips[1]) == 2 else p[:0]])]
-        if meets == staged:
+            loops[0].extend([p, p[::-1]])
             continue
-        for s in seqs:
-            pts.append(s)
-            loop_id.append(np.full(len(s), nxt_loop))
-            nxt_loop += 1
-    points = np.concatenate(pts)
-    node_loop = np.concatenate(loop_id)
+        tips = []
+        meets = False
+        for end, before in ((p[-1], p[-2]), (p[0], p[1])):
+            t = end - before
+            t = t / max(float(np.hypot(*t)), 1e-300)
+            eps = 1e-6 * float(np.hypot(*(end - before)))
+            nrm = np.array([-t[1], t[0]])
+            inside = abs(float(domain.sdf(end[None, :])[0])) > 10 * tol.ON_BOUNDARY * diam
+            meets = meets or not inside
+            tips.append(np.stack([end + eps * nrm, end - eps * nrm]) if inside else end[None, :])
+        # Out along the curve (its left side), round the far end, back (its right side),
+        # round the near end.
+        loops[meets].append(np.concatenate([tips[1][-1:] if len(tips[1]) == 2 else p[:1], p[1:-1], tips[0],
+                                            p[-2:0:-1], tips[1][:1] if len(tips[1]) == 2 else p[:0]]))
+    return _as_loops(loops[0]), _as_loops(loops[1])
+
+
+def _as_loops(seqs: list[FloatArray]) -> BoundaryMesh:
+    """Closed loops of the point sequences ``seqs``, numbered from 0."""
+    if not seqs:
+        return BoundaryMesh(np.empty((0, 2)), np.empty((0, 2), dtype=np.intp), np.empty(0, dtype=np.intp),
+                            np.zeros(0, dtype=bool))
+    points = np.concatenate(seqs)
+    node_loop = np.repeat(np.arange(len(seqs)), [len(q) for q in seqs])
     start = np.flatnonzero(np.r_[True, node_loop[1:] != node_loop[:-1]])
     end = np.r_[start[1:], len(node_loop)] - 1
     idx = np.arange(len(points))
