@@ -1286,10 +1286,10 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Domain, ...], layer
     """h lowered where a region's wall and another wall of the same part face each other closer
     than about ``layers * h``.
 
-    Each part's exact boundary is sampled every ``s = h_min / CELLS_PER_H``, a loop smaller
-    than ``LOOP_CELLS * s`` more finely (:func:`_gap_loops`).  (Sampled at the spacing a feature
-    grid would have, ``diameter / FEATURE_CELLS`` where that is finer, the paper's cases spent
-    4-11 ms here, on chords h / 4 samples find as well.)  For every vertex a, the compiled
+    Each loop of a part's exact boundary is sampled every ``s``, a quarter of the least h on
+    it, or finer for a loop only a few h across (:func:`_gap_loops`).  (Sampled at the spacing a
+    feature grid would have, ``diameter / FEATURE_CELLS`` where that is finer, the paper's cases
+    spent 4-11 ms here, on chords h / 4 samples find as well.)  For every vertex a, the compiled
     search (:func:`~injmesh.kernels.gaps.thinnest_chords`) judges the segments of the same part
     starting within ``r = PROBE_SLACK * layers * h + s`` (a's r or the partner's), one of the
     two on a region's wall, as :func:`~injmesh.sizing.thick_everywhere` judges them: the foot f
@@ -1324,7 +1324,7 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Domain, ...], layer
     for part in parts:
         brep = exact_boundary(part)
         assert brep is not None
-        loops, steps = _gap_loops(brep, step)
+        loops, steps = _gap_loops(brep, step, hr)
         if not loops:
             continue
         v, _, prv, seg, seg_len, v_n, seg_n = loop_frames(loops)
@@ -1362,26 +1362,33 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Domain, ...], layer
 LOOP_CELLS = 16
 
 
-def _gap_loops(brep: Any, step: float) -> tuple[list[FloatArray], FloatArray]:
+def _gap_loops(brep: Any, step: float, h: Callable[[FloatArray], FloatArray]
+               ) -> tuple[list[FloatArray], FloatArray]:
     """The loops of ``brep`` sampled for :func:`_gap_cones`, and each one's spacing.
 
-    Every loop is sampled at ``step`` (a quarter of the smallest h), or at ``extent /
-    LOOP_CELLS`` when that is finer (a loop much smaller than h), rounded down to ``step``
-    over a power of two so that all the loops of one spacing are sampled in one call.
+    A loop is sampled every ``min(h_loop, extent / LOOP_CELLS * CELLS_PER_H) / CELLS_PER_H``
+    with ``h_loop`` the least h at its samples ``step`` apart (``step``: a quarter of the least
+    h over the domain), rounded down to ``step`` times a power of two so that the loops of
+    one spacing are sampled in one call.  The chord search costs the square of a loop's
+    samples: an inclusion where h is four times the domain's least took 16x the pairs it
+    needs at the least h's spacing (2.3 ms of the unit disc's 11 ms).
     """
-    from .sizing.background import densify
+    from .sizing.background import CELLS_PER_H, densify
 
     loops = [np.asarray(lp, dtype=np.float64) for lp in brep.boundary_loops(step)]
     k = np.zeros(len(loops), dtype=np.intp)
     for i, lp in enumerate(loops):
-        extent = float(np.ptp(lp, axis=0).max()) if len(lp) else 0.0
-        if 0.0 < extent < LOOP_CELLS * step:
-            k[i] = int(math.ceil(math.log2(LOOP_CELLS * step / extent)))
-    steps = step / np.exp2(k)
-    for level in np.unique(k[k > 0]).tolist():
-        finer = brep.boundary_loops(step / 2.0**level)
+        if len(lp) < 2:
+            continue
+        extent = float(np.ptp(lp, axis=0).max())
+        wanted = min(float(np.min(h(lp))), extent * CELLS_PER_H / LOOP_CELLS) / CELLS_PER_H
+        if wanted > 0.0:
+            k[i] = int(math.floor(math.log2(wanted / step) + 1e-9))
+    steps = step * np.exp2(k)
+    for level in np.unique(k[k != 0]).tolist():
+        other = brep.boundary_loops(step * 2.0**level)
         for i in np.flatnonzero(k == level).tolist():
-            loops[i] = np.asarray(finer[i], dtype=np.float64)
+            loops[i] = np.asarray(other[i], dtype=np.float64)
     keep = [i for i, lp in enumerate(loops) if len(lp) >= 2]
     return [densify(loops[i], float(steps[i])) for i in keep], steps[keep]
 
