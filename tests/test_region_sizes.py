@@ -69,7 +69,8 @@ def test_a_region_touching_the_boundary_at_an_angle_keeps_a_floor():
     h, size = lowered(SQUARE, 0.05, {"wedge": wedge})
     assert size is not h
     tip = np.array([[0.3 + s, 0.0] for s in (1e-6, 1e-4, 1e-3, 1e-2)]) + [0.0, 1e-7]
-    floor = 2.0 * (0.05 / 4.0) / 2.0  # walls sampled every h / 4 (the wedge is 8 h across)
+    # Near the tip the walls are searched again every min(h / 4, diameter / 256).
+    floor = 2.0 * min(0.05 / 4.0, SQUARE.diameter / 256) / 2.0
     assert np.all(size(tip) >= floor * (1 - 1e-9))
     mesh = injmesh.generate(SQUARE, 0.05, regions={"wedge": wedge})
     v = np.array([(0.3, 0.0), (0.7, 0.4 * t), (0.3, 0.3)])

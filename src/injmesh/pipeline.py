@@ -1287,9 +1287,12 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Domain, ...], layer
     than about ``layers * h``.
 
     Each loop of a part's exact boundary is sampled every ``s``, a quarter of the least h on
-    it, or finer for a loop only a few h across (:func:`_gap_loops`).  (Sampled at the spacing a
-    feature grid would have, ``diameter / FEATURE_CELLS`` where that is finer, the paper's cases
-    spent 4-11 ms here, on chords h / 4 samples find as well.)  For every vertex a, the compiled
+    it, or finer for a loop only a few h across (:func:`_gap_loops`).  Where a chord found is
+    narrower than ``TIGHT`` spacings (towards a wedge's tip, a near-tangency), the part is
+    searched again near it at the spacing a feature grid would have, ``min(h_min / CELLS_PER_H,
+    diameter / FEATURE_CELLS)``.  (Sampled at that spacing everywhere, the paper's cases spent
+    4-11 ms here; at s alone, 1000 fuzzed regions lost up to 0.48 of q_min at wedge tips,
+    which the second search restores.)  For every vertex a, the compiled
     search (:func:`~injmesh.kernels.gaps.thinnest_chords`) judges the segments of the same part
     starting within ``r = PROBE_SLACK * layers * h + s`` (a's r or the partner's), one of the
     two on a region's wall, as :func:`~injmesh.sizing.thick_everywhere` judges them: the foot f
@@ -1301,8 +1304,9 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Domain, ...], layer
     along the chords (``GAP_SAMPLES`` each): ``w / layers`` across the gap, growing back at the
     feature size's own slope (2) over ``layers`` (the gradation limit then smooths it),
     computed as the corner cap's cones are (:func:`~injmesh.kernels.outline.corner_cones`).
-    The width is floored at two of its loop's spacings, as the feature grid's is, so a wedge's
-    tip (a region touching the boundary at an angle) does not ask for vanishing elements.
+    The width is floored at two spacings (its loop's, and at least the fine one), as the
+    feature grid's is, so a wedge's tip (a region touching the boundary at an angle) does not
+    ask for vanishing elements.
 
     Chords with both ends on the domain's own boundary are never looked at: the domain's own
     thin parts are the feature size's (:func:`_target_size`), as without regions.  A chord
@@ -1311,7 +1315,7 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Domain, ...], layer
     """
     from .kernels.gaps import thinnest_chords
     from .sizing.background import CELLS_PER_H, exact_boundary, probe_min
-    from .sizing.features import FACING_SLACK, PROBE_SLACK, loop_frames
+    from .sizing.features import FACING_SLACK, FEATURE_CELLS, PROBE_SLACK, loop_frames
 
     corner_angle = 30.0  # effective_size's default
     diam = float(domain.diameter)
@@ -1320,6 +1324,10 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Domain, ...], layer
     cos = math.cos(math.radians(min(corner_angle + FACING_SLACK, 89.0)))
     eps = tol.ON_BOUNDARY * diam
     hr = h.restricted(domain)
+    # Where a chord is only a few samples wide (towards a wedge's tip, a near-tangency), the
+    # samples' spacing sets its width's floor: there the part is searched again at the
+    # spacing a feature grid would have.
+    fine = min(step, diam / FEATURE_CELLS)
     starts, feet, widths, floors = [], [], [], []
     for part in parts:
         brep = exact_boundary(part)
@@ -1339,7 +1347,26 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Domain, ...], layer
         starts.append(v[keep])
         feet.append(foot[keep])
         widths.append(w[keep])
-        floors.append(2.0 * spacing[keep])
+        floors.append(2.0 * np.maximum(spacing[keep], fine))
+        tight = keep & (w < TIGHT * spacing) & (spacing > fine * (1.0 + 1e-9))
+        if not tight.any():
+            continue
+        loops, steps = _gap_loops(brep, fine, None)
+        v, _, prv, seg, seg_len, v_n, seg_n = loop_frames(loops)
+        spacing = np.repeat(steps, [len(lp) for lp in loops])
+        near = _near_chords(v, np.concatenate([starts[-1][tight[keep]], feet[-1][tight[keep]]]),
+                            np.tile(widths[-1][tight[keep]] + TIGHT * floors[-1][tight[keep]], 2))
+        wall = near & (np.abs(domain.sdf(v)) > eps)
+        if not wall.any():
+            continue
+        # Vertices away from the tight chords neither search nor are searched from the others.
+        radius = np.where(near, PROBE_SLACK * layers * hr(v) + 2.0 * spacing, 0.0)
+        w, foot = thinnest_chords(v, prv, seg, seg_len, v_n, seg_n, wall, radius, cos)
+        keep = near & (w < radius)
+        starts.append(v[keep])
+        feet.append(foot[keep])
+        widths.append(w[keep])
+        floors.append(2.0 * np.maximum(spacing[keep], fine))
     a, f = (np.concatenate(x) if x else np.empty((0, 2)) for x in (starts, feet))
     w, floor = (np.concatenate(x) if x else np.empty(0) for x in (widths, floors))
     own = (np.abs(domain.sdf(a)) <= eps) & (np.abs(domain.sdf(f)) <= eps) if len(a) else \
@@ -1357,12 +1384,28 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Domain, ...], layer
     return SizeFunction(_Cones(h, c, apex, 2.0 / layers))
 
 
+#: :func:`_gap_cones` searches a part again at the fine spacing near its chords narrower than
+#: TIGHT of their vertices' spacings (and within that many floors of them).
+TIGHT = 4.0
+
+
+def _near_chords(v: FloatArray, centres: FloatArray, reach: FloatArray) -> NDArray[np.bool_]:
+    """Which of the points ``v`` lie within ``reach`` of one of ``centres`` (of one of the
+    nearest eight, which on chords' ends along a few walls is one of all)."""
+    from scipy.spatial import cKDTree
+
+    k = min(8, len(centres))
+    dist, idx = cKDTree(centres).query(v, k=k)
+    dist, idx = dist.reshape(len(v), k), idx.reshape(len(v), k)
+    return np.asarray(np.any(dist <= reach[idx], axis=1))
+
+
 #: :func:`_gap_cones` samples a loop at least this many times across its extent, however
 #: large h is: a disc a fraction of h across still gets its diameter's chords right.
 LOOP_CELLS = 16
 
 
-def _gap_loops(brep: Any, step: float, h: Callable[[FloatArray], FloatArray]
+def _gap_loops(brep: Any, step: float, h: Callable[[FloatArray], FloatArray] | None
                ) -> tuple[list[FloatArray], FloatArray]:
     """The loops of ``brep`` sampled for :func:`_gap_cones`, and each one's spacing.
 
@@ -1381,9 +1424,11 @@ def _gap_loops(brep: Any, step: float, h: Callable[[FloatArray], FloatArray]
         if len(lp) < 2:
             continue
         extent = float(np.ptp(lp, axis=0).max())
-        wanted = min(float(np.min(h(lp))), extent * CELLS_PER_H / LOOP_CELLS) / CELLS_PER_H
+        wanted = extent / LOOP_CELLS
+        if h is not None:
+            wanted = min(float(np.min(h(lp))) / CELLS_PER_H, wanted)
         if wanted > 0.0:
-            k[i] = int(math.floor(math.log2(wanted / step) + 1e-9))
+            k[i] = min(int(math.floor(math.log2(wanted / step) + 1e-9)), 0 if h is None else 64)
     steps = step * np.exp2(k)
     for level in np.unique(k[k != 0]).tolist():
         other = brep.boundary_loops(step * 2.0**level)
