@@ -41,7 +41,7 @@ def _grid(v, pick, size, x0, y0, nx, ny):  # type: ignore[no-untyped-def]
     return members, first
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _try(a, s, v, seg, seg_len, v_n, seg_n, cos, best_w, best_f):  # type: ignore[no-untyped-def]
     """Vertex a against segment s (``outline._judge``'s facing test, at any distance); a facing
     pair whose thickness ``dist / (e . n_a)`` is below a's best so far replaces it."""
