@@ -340,6 +340,20 @@ def unique_edges(tri, n):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
+def rows_with(tri, mark):  # type: ignore[no-untyped-def]
+    """The rows of ``tri`` (in order) that hold a node flagged in ``mark``: one pass, where
+    ``mark[tri].any(axis=1)`` gathers a flag per corner into a temporary first."""
+    m = tri.shape[0]
+    out = np.empty(m, dtype=np.int64)
+    k = 0
+    for t in range(m):
+        if mark[tri[t, 0]] or mark[tri[t, 1]] or mark[tri[t, 2]]:
+            out[k] = t
+            k += 1
+    return out[:k].copy()
+
+
+@njit(cache=True)
 def neighbours(tri, n):  # type: ignore[no-untyped-def]
     """Triangle across the edge opposite each corner, ``(m, 3)``, -1 where there is none.
 
