@@ -11,7 +11,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from injmesh.kernels.delaunay import flip_rows_to_delaunay, flip_to_delaunay
-from injmesh.kernels.mesh import by_least_vertex, neighbours
+from injmesh.kernels.mesh import by_least_vertex, neighbours, rows_with
 from injmesh.kernels.repair import (
     apply_edits,
     canonical,
@@ -177,6 +177,14 @@ def _random_edits(seed: int, p, tri, n_fixed):  # type: ignore[no-untyped-def]
     chord = _ref_chords(p, tri, n_fixed, _ref_keys(np.zeros((0, 2), dtype=np.int64)))
     hv = rng.uniform(0.05, 0.3, 3 * len(bad))
     return bad, chord, hv
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_rows_with_flagged_nodes_match_numpy(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    p, tri = _mesh(seed)
+    mark = rng.random(len(p)) < [0.0, 0.02, 0.1, 0.3, 0.7, 1.0][seed]
+    assert np.array_equal(rows_with(tri, mark), np.flatnonzero(mark[tri].any(axis=1)))
 
 
 @pytest.mark.parametrize("seed", range(6))

@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from .delaunay import flip_rows_to_delaunay, flip_to_delaunay
-from .mesh import by_least_vertex, neighbours, triangle_quality
+from .mesh import by_least_vertex, neighbours, rows_with, triangle_quality
 from .smooth import adjacency, rings
 
 
@@ -421,13 +421,7 @@ def flip_near(p, tri, near, everywhere):  # type: ignore[no-untyped-def]
     mark = np.zeros(n, dtype=np.bool_)
     for v in near:
         mark[v] = True
-    rows = np.empty(m, dtype=np.int32)
-    c = 0
-    for r in range(m):
-        if mark[t32[r, 0]] or mark[t32[r, 1]] or mark[t32[r, 2]]:
-            rows[c] = r
-            c += 1
-    return flip_rows_to_delaunay(p, t32, nbr, con, vt, rows[:c]), t32
+    return flip_rows_to_delaunay(p, t32, nbr, con, vt, rows_with(t32, mark).astype(np.int32)), t32
 
 
 @njit(cache=True)
