@@ -1294,13 +1294,14 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Any, ...], layers: 
     """h lowered where a region's wall and another wall of the same part face each other closer
     than about ``layers * h``.
 
-    Each loop of a part's exact boundary is sampled every ``s``, a quarter of the least h on
-    it, or finer for a loop only a few h across (:func:`_gap_loops`).  Where a chord found is
-    narrower than ``TIGHT`` spacings (towards a wedge's tip, a near-tangency), the part is
-    searched again near it at the spacing a feature grid would have, ``min(h_min / CELLS_PER_H,
-    diameter / FEATURE_CELLS)``.  (Sampled at that spacing everywhere, the paper's cases spent
-    4-11 ms here; at s alone, 1000 fuzzed regions lost up to 0.48 of q_min at wedge tips,
-    which the second search restores.)  For every vertex a, the compiled
+    Each loop of a part's exact boundary is sampled every ``s``, the least h on it over
+    ``GAP_COARSE``, or finer for a loop only a few h across (:func:`_gap_loops`).  Where a chord
+    found is narrower than ``TIGHT`` spacings (every chord that lowers h, and towards a wedge's
+    tip or a near-tangency), the part is searched again near it at the spacing a feature grid
+    would have, ``min(h_min / CELLS_PER_H, diameter / FEATURE_CELLS)``.  (Sampled at that
+    spacing everywhere, the paper's cases spent 4-11 ms here; at h / 4 alone, 1000 fuzzed
+    regions lost up to 0.48 of q_min at wedge tips, which the second search restores.)  For
+    every vertex a, the compiled
     search (:func:`~injmesh.kernels.gaps.thinnest_chords`) judges the segments of the same part
     starting within ``r = PROBE_SLACK * layers * h + s`` (a's r or the partner's), one of the
     two on a region's wall, as :func:`~injmesh.sizing.thick_everywhere` judges them: the foot f
@@ -1328,14 +1329,14 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Any, ...], layers: 
     corner_angle = 30.0  # effective_size's default
     diam = float(domain.diameter)
     lo = min(h.constant, diam) if h.constant is not None else probe_min(h, domain)
-    step = lo / CELLS_PER_H
+    step = lo / GAP_COARSE
     cos = math.cos(math.radians(min(corner_angle + FACING_SLACK, 89.0)))
     eps = tol.ON_BOUNDARY * diam
     hr = h.restricted(domain)
     # Where a chord is only a few samples wide (towards a wedge's tip, a near-tangency), the
     # samples' spacing sets its width's floor: there the part is searched again at the
     # spacing a feature grid would have.
-    fine = min(step, diam / FEATURE_CELLS)
+    fine = min(lo / CELLS_PER_H, diam / FEATURE_CELLS)
     starts, feet, widths, floors = [], [], [], []
     for brep in parts:
         loops, steps = _gap_loops(brep, step, hr)
@@ -1429,6 +1430,10 @@ class _Holed:
         return out
 
 
+#: :func:`_gap_cones`' first search samples the walls GAP_COARSE times per h; it only finds
+#: where the walls come close: the chords it finds narrower than TIGHT samples (every chord
+#: that lowers h, with two layers) are measured by a second search at the fine spacing.
+GAP_COARSE = 2.0
 #: :func:`_gap_cones` searches a part again at the fine spacing near its chords narrower than
 #: TIGHT of their vertices' spacings (and within that many floors of them).
 TIGHT = 4.0
@@ -1454,15 +1459,15 @@ def _gap_loops(brep: Any, step: float, h: Callable[[FloatArray], FloatArray] | N
                ) -> tuple[list[FloatArray], FloatArray]:
     """The loops of ``brep`` sampled for :func:`_gap_cones`, and each one's spacing.
 
-    A loop is sampled every ``min(h_loop / CELLS_PER_H, extent / LOOP_CELLS)`` with ``h_loop``
-    the least h at its samples ``step`` apart (``step``: a quarter of the least h over the
-    domain), rounded down to ``step`` times a power of two so that the loops of one spacing
+    A loop is sampled every ``min(h_loop / GAP_COARSE, extent / LOOP_CELLS)`` with ``h_loop``
+    the least h at its samples ``step`` apart (``step``: the least h over the domain over
+    ``GAP_COARSE``), rounded down to ``step`` times a power of two so that the loops of one spacing
     are sampled in one call; without h (the second, local search), every ``step`` or finer
     for a small loop.  The chord search costs the square of a loop's
     samples: an inclusion where h is four times the domain's least took 16x the pairs it
     needs at the least h's spacing (2.3 ms of the unit disc's 11 ms).
     """
-    from .sizing.background import CELLS_PER_H, densify
+    from .sizing.background import densify
 
     loops = [np.asarray(lp, dtype=np.float64) for lp in brep.boundary_loops(step)]
     k = np.zeros(len(loops), dtype=np.intp)
@@ -1472,7 +1477,7 @@ def _gap_loops(brep: Any, step: float, h: Callable[[FloatArray], FloatArray] | N
         extent = float(np.ptp(lp, axis=0).max())
         wanted = extent / LOOP_CELLS
         if h is not None:
-            wanted = min(float(np.min(h(lp))) / CELLS_PER_H, wanted)
+            wanted = min(float(np.min(h(lp))) / GAP_COARSE, wanted)
         if wanted > 0.0:
             k[i] = int(math.floor(math.log2(wanted / step) + 1e-9))
             if h is None:
