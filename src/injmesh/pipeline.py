@@ -1263,7 +1263,7 @@ def _region_features(domain: Domain, h: SizeFunction, cons: Constraints, layers:
     # Regions that cover the whole domain (a partition into materials) leave no rest: an empty
     # set operation, which as a domain of its own would be refused.
     parts = (*cons.regions, *(() if getattr(rest, "is_empty", False) is True else (rest,)))
-    exact = [exact_boundary(part) for part in parts]
+    exact = [*breps, *(exact_boundary(part) for part in parts[len(breps):])]
     if all(b is not None for b in exact):
         return _gap_cones(domain, h, tuple(exact), float(layers))  # type: ignore[arg-type]
     # A part on which no two walls face each other within a few h (a circle several h across)
@@ -1337,48 +1337,47 @@ def _gap_cones(domain: Domain, h: SizeFunction, parts: tuple[Any, ...], layers: 
     # samples' spacing sets its width's floor: there the part is searched again at the
     # spacing a feature grid would have.
     fine = min(lo / CELLS_PER_H, diam / FEATURE_CELLS)
-    starts, feet, widths, floors = [], [], [], []
-    for brep in parts:
-        loops, steps = _gap_loops(brep, step, hr)
-        if not loops:
-            continue
+
+    def search(loops: list[FloatArray], steps: FloatArray, centres: FloatArray | None = None,
+               reach: FloatArray | None = None) -> tuple[FloatArray, ...] | None:
+        """The chords thinner than their search radius from the loops' vertices: starts, feet,
+        widths and spacings; with ``centres``, only from and to the vertices within ``reach``
+        of one of them (vertices away from them neither search nor are searched)."""
         v, _, prv, seg, seg_len, v_n, seg_n = loop_frames(loops)
         spacing = np.repeat(steps, [len(lp) for lp in loops])
+        near = np.ones(len(v), dtype=bool) if centres is None or reach is None else \
+            _near_chords(v, centres, reach)
         # Region walls: the vertices off the domain's boundary.
-        wall = np.abs(domain.sdf(v)) > eps
-        if not wall.any():
-            continue
-        radius = PROBE_SLACK * layers * hr(v) + 2.0 * spacing
-        w, foot = thinnest_chords(v, prv, seg, seg_len, v_n, seg_n, wall, radius, cos)
-        keep = w < radius
-        starts.append(v[keep])
-        feet.append(foot[keep])
-        widths.append(w[keep])
-        floors.append(2.0 * np.maximum(spacing[keep], fine))
-        tight = keep & (w < TIGHT * spacing) & (spacing > fine * (1.0 + 1e-9))
-        if not tight.any():
-            continue
-        loops, steps = _gap_loops(brep, fine, None)
-        v, _, prv, seg, seg_len, v_n, seg_n = loop_frames(loops)
-        spacing = np.repeat(steps, [len(lp) for lp in loops])
-        near = _near_chords(v, np.concatenate([starts[-1][tight[keep]], feet[-1][tight[keep]]]),
-                            np.tile(widths[-1][tight[keep]] + TIGHT * floors[-1][tight[keep]], 2))
         wall = near & (np.abs(domain.sdf(v)) > eps)
         if not wall.any():
-            continue
-        # Vertices away from the tight chords neither search nor are searched from the others.
+            return None
         radius = np.where(near, PROBE_SLACK * layers * hr(v) + 2.0 * spacing, 0.0)
         w, foot = thinnest_chords(v, prv, seg, seg_len, v_n, seg_n, wall, radius, cos)
         keep = near & (w < radius)
-        starts.append(v[keep])
-        feet.append(foot[keep])
-        widths.append(w[keep])
-        floors.append(2.0 * np.maximum(spacing[keep], fine))
-    a, f = (np.concatenate(x) if x else np.empty((0, 2)) for x in (starts, feet))
-    w, floor = (np.concatenate(x) if x else np.empty(0) for x in (widths, floors))
+        return v[keep], foot[keep], w[keep], spacing[keep]
+
+    found = []
+    for brep in parts:
+        loops, steps = _gap_loops(brep, step, hr)
+        coarse = search(loops, steps) if loops else None
+        if coarse is None:
+            continue
+        found.append(coarse)
+        a, f, w, s = coarse
+        tight = (w < TIGHT * s) & (s > fine * (1.0 + 1e-9))
+        if tight.any():
+            loops, steps = _gap_loops(brep, fine, None)
+            reach = w[tight] + TIGHT * 2.0 * np.maximum(s[tight], fine)
+            local = search(loops, steps, np.concatenate([a[tight], f[tight]]), np.tile(reach, 2))
+            if local is not None:
+                found.append(local)
+    if not found:
+        return h
+    a, f, w, s = (np.concatenate(x) for x in zip(*found, strict=True))
+    floor = 2.0 * np.maximum(s, fine)
     own = (np.abs(domain.sdf(a)) <= eps) & (np.abs(domain.sdf(f)) <= eps) if len(a) else \
         np.zeros(0, dtype=bool)
-    a, f, w, floor = a[~own], f[~own], w.ravel()[~own], floor[~own]
+    a, f, w, floor = a[~own], f[~own], w[~own], floor[~own]
     if not len(a):
         return h
     t = np.linspace(0.0, 1.0, GAP_SAMPLES)
