@@ -45,3 +45,15 @@ def test_setup_stages_runs(monkeypatch: pytest.MonkeyPatch, capsys: pytest.Captu
     monkeypatch.setattr(sys, "argv", ["setup_stages.py", "--sizes", "1e3", "--repeat", "1", "--skip-cases"])
     setup_stages.main()
     assert "unit square 1e3" in capsys.readouterr().out
+
+
+def test_regions_runs(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    import regions
+
+    monkeypatch.setattr(sys, "argv", ["regions.py", "--repeat", "1", "--large-nodes", "2e3", "4e3"])
+    regions.main()
+    out = capsys.readouterr().out
+    # The six cases with an inclusion and as a hole, a table per size, then the ratios by size.
+    assert out.count("| l_shape |") == 1 and "N (hole)" in out
+    assert out.count("Time with / without regions") == 2
+    assert "| 2e+03 |" in out and "| 4e+03 |" in out
