@@ -113,17 +113,16 @@ def _large(nodes: float, repeat: int) -> tuple[float, ...]:
         ("with the regions alone (no crack)", square, {"regions": SQUARE_REGIONS}),
     )
     rounds: list[list[float]] = []
-    meshes = []
     for _ in range(max(1, repeat)):
-        row = []
-        meshes = []
+        row, meshes = [], []
         for _label, dom, kw in variants:
             t, mesh = best_time(lambda d=dom, k=kw: injmesh.generate(d, h, max_nodes=10**8, **k), 1)
             row.append(t)
             meshes.append(mesh)
         rounds.append(row)
-    times = np.min(np.array(rounds), axis=0)
-    ratio = np.array(rounds) / np.array(rounds)[:, :1]
+    seconds = np.array(rounds)
+    times = seconds.min(axis=0)
+    ratio = seconds / seconds[:, :1]
     print(f"\nUnit square, h = {h:.5f}, two circular inclusions and a crack:\n")
     print("| mesh | N | q_min | q_mean | iterations | seconds | stages |")
     print("|---|---|---|---|---|---|---|")
