@@ -1,13 +1,15 @@
 """Benchmark: regions and interior curves (issue 9) against the same meshes without them.
 
-Two tables:
+Three tables:
 
 1. The paper's six domains, each meshed as it is, with one circular inclusion (a region), and
    with the same circle cut out as a hole (``domain - Circle``, no regions): N, q_min, q_mean,
    the inclusion's area error (its polygon against the circle), milliseconds and the time
    ratios to the plain domain.  The hole has the same curve and the same thin parts as the
    inclusion, with no region machinery: what the curve costs as geometry.
-2. A unit square of about ``--large-nodes`` nodes (default 1e5; give several to see the
+2. The plain domains and the inclusions again with ``feature_layers=None`` on both sides: the
+   inclusions, one or two h across, then make no thin part (no lowered h, no chord search).
+3. A unit square of about ``--large-nodes`` nodes (default 1e5; give several to see the
    trend), without and with the issue's constraints (two circular inclusions and a polyline
    crack): the time ratio, which issue 9 wants within 1.3x, and the stages' seconds; the
    square with the same circles as holes; and with the two regions alone.  With several
@@ -80,6 +82,7 @@ def main() -> None:
         print(f"| {name} | {plain.n_points} | {q0.min():.3f} | {q0.mean():.3f} | {t0 * 1e3:.1f} | "
               f"{mesh.n_points} | {q1.min():.3f} | {q1.mean():.3f} | {err:+.2%} | {t1 * 1e3:.1f} | "
               f"{t1 / t0:.2f} | {hole.n_points} | {q2.min():.3f} | {t2 * 1e3:.1f} | {t2 / t0:.2f} |")
+    _without_feature_size(args.repeat)
 
     if args.skip_large:
         return
@@ -91,6 +94,29 @@ def main() -> None:
         for n, (t0, t1, t2, t3) in zip(args.large_nodes, trend, strict=True):
             print(f"| {n:.0e} | {t0:.2f} | {t1:.2f} | {t1 / t0:.2f} | {t2:.2f} | {t2 / t0:.2f} "
                   f"| {t3:.2f} | {t3 / t0:.2f} |")
+
+
+def _without_feature_size(repeat: int) -> None:
+    """The first table's plain and inclusion meshes again with ``feature_layers=None`` on both
+    sides: h as given, so the inclusion adds no thin part (no lowered h, no chord search).
+
+    At the paper cases' resolution every inclusion is one or two h across, a thin part by the
+    default rule (``feature_layers=2``); this separates what the regions cost from what the
+    thin parts they make cost.
+    """
+    print("\nThe same, with `feature_layers=None` on both sides (h as given, no thin-part "
+          "lowering):\n")
+    print("| case | N | q_min | ms | N (inclusion) | q_min | ms | ratio |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name, case in CASES.items():
+        centre, radius = INCLUSIONS[name]
+        regions = {"inclusion": Circle(centre, radius)}
+        t0, plain = best_time(lambda c=case: injmesh.generate(c.geometry, c.size, feature_layers=None),
+                              repeat)
+        t1, mesh = best_time(lambda c=case, r=regions: injmesh.generate(c.geometry, c.size, regions=r,
+                                                                        feature_layers=None), repeat)
+        print(f"| {name} | {plain.n_points} | {plain.quality().min():.3f} | {t0 * 1e3:.1f} | "
+              f"{mesh.n_points} | {mesh.quality().min():.3f} | {t1 * 1e3:.1f} | {t1 / t0:.2f} |")
 
 
 def _large(nodes: float, repeat: int) -> tuple[float, ...]:

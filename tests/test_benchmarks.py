@@ -53,7 +53,8 @@ def test_regions_runs(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFix
     monkeypatch.setattr(sys, "argv", ["regions.py", "--repeat", "1", "--large-nodes", "2e3", "4e3"])
     regions.main()
     out = capsys.readouterr().out
-    # The six cases with an inclusion and as a hole, a table per size, then the ratios by size.
-    assert out.count("| l_shape |") == 1 and "N (hole)" in out
+    # The six cases with an inclusion and as a hole, again without the feature size, a table
+    # per size, then the ratios by size.
+    assert out.count("| l_shape |") == 2 and "N (hole)" in out and "feature_layers=None" in out
     assert out.count("Time with / without regions") == 2
     assert "| 2e+03 |" in out and "| 4e+03 |" in out
