@@ -271,3 +271,106 @@ def test_fill_census_matches_the_numpy_passes(seed: int, n: int, shape: tuple[in
         assert np.array_equal(got[1], want[1]) and got[4] == want[4]
     else:
         assert not got[1].any()
+
+
+def _relaid(rings: list[np.ndarray], closed: list[bool], window: int):
+    """relay() over the chains ``rings`` with h = 1 (ds = the segments' lengths)."""
+    points = np.concatenate(rings)
+    start = np.concatenate([[0], np.cumsum([len(r) for r in rings])]).astype(np.int64)
+    flags = np.array(closed)
+    poly, pchain = kern.chain_polylines(points, start, flags)
+    same = pchain[1:] == pchain[:-1]
+    ds = np.where(same, np.hypot(*(poly[1:] - poly[:-1]).T), 0.0)
+    out, count, stays = kern.relay(poly, pchain, ds, flags, points, start, window)
+    lengths = [float(ds[pchain[1:] == c].sum()) for c in range(len(rings))]
+    return out, count, stays, lengths
+
+
+def _ring(n: int, radius: float, phase: float = 0.0) -> np.ndarray:
+    a = phase + 2 * np.pi * np.arange(n) / n
+    return np.stack([radius * np.cos(a), radius * np.sin(a)], axis=1)
+
+
+def test_windows_keep_a_growing_ring_in_step() -> None:
+    """A ring of 300 points 1.02 apart (a layer going out from a circle 48 h across) gains six:
+    relaid with windows it keeps all but 6 * (window - 1) of its points where they are, and the
+    six windows, evenly round it, are laid at equal spacing; uniformly, it keeps only the few
+    where the slipping phase comes round."""
+    n, spacing = 300, 1.02
+    ring = _ring(n, spacing / (2 * np.sin(np.pi / n)))
+    for window in (12, 0):
+        out, count, stays, (length,) = _relaid([ring], [True], window)
+        assert count[0] == round(length) == 306 and stays[0]
+        d = np.min(np.hypot(*(out[:, None, :] - ring[None, :, :]).transpose(2, 0, 1)), axis=1)
+        kept = int(np.sum(d < 1e-9))
+        assert kept >= n - 6 * 11 if window else kept <= 7
+    out, *_ = _relaid([ring], [True], 12)
+    # In order round the ring, gaps of about 1.02 outside the windows, 12/13 of that inside.
+    ang = np.unwrap(np.arctan2(out[:, 1], out[:, 0]))
+    gaps = np.diff(np.r_[ang, ang[0] + 2 * np.pi]) * np.hypot(*ring[0])
+    assert np.all(gaps > 0)
+    assert np.allclose(np.sort(gaps)[:6 * 13], spacing * 12 / 13, rtol=1e-3)
+    assert np.allclose(np.sort(gaps)[6 * 13:], spacing, rtol=1e-3)
+
+
+def test_windows_take_the_slip_up_where_it_builds() -> None:
+    """A loop round a crack, its straight sides in step (points 1 apart) and its round ends
+    crowded (points 0.7 apart): the points it loses are taken up at the ends, and the middle of
+    each side keeps every point where it is."""
+    side = np.stack([np.arange(100, dtype=float), np.zeros(100)], axis=1)
+    a = np.linspace(-np.pi / 2, np.pi / 2, 11)[1:-1]  # a half circle of radius 2: 9 points
+    end_r = np.stack([99 + 2 * np.cos(a), 2 + 2 * np.sin(a)], axis=1)
+    back = np.stack([np.arange(99, -1, -1, dtype=float), np.full(100, 4.0)], axis=1)
+    end_l = np.stack([-2 * np.cos(a), 2 - 2 * np.sin(a)], axis=1)
+    loop = np.concatenate([side, end_r, back, end_l])
+    out, count, _, (length,) = _relaid([loop], [True], 12)
+    assert count[0] == round(length) < len(loop)
+    middle = (loop[:, 0] > 30) & (loop[:, 0] < 70)
+    d = np.min(np.hypot(*(loop[middle][:, None, :] - out[None, :, :]).transpose(2, 0, 1)), axis=1)
+    assert np.all(d < 1e-9)
+    uniform, *_ = _relaid([loop], [True], 0)
+    d = np.min(np.hypot(*(loop[middle][:, None, :] - uniform[None, :, :]).transpose(2, 0, 1)), axis=1)
+    assert np.mean(d < 1e-9) < 0.2
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    chains=st.lists(st.tuples(st.integers(3, 400), st.booleans(), st.floats(0.3, 3.0)), min_size=1,
+                    max_size=4),
+    window=st.sampled_from([0, 4, 8, 12, 64]),
+)
+def test_relay_keeps_its_counts_and_stays_on_the_chains(seed: int, chains, window: int) -> None:
+    """Windowed or not, every chain gets round(S) segments (closed: at least three, or collapses
+    below 2.5), in order along it, every point on the chain's polyline."""
+    rng = np.random.default_rng(seed)
+    rings, closed = [], []
+    for n, is_closed, jitter in chains:
+        r = _ring(n, n / (2 * np.pi) * rng.uniform(0.8, 1.25), rng.uniform(0, 6.3))
+        r = r * (1 + 0.1 * jitter * rng.random((n, 1)))
+        rings.append(r)
+        closed.append(is_closed)
+    out, count, stays, lengths = _relaid(rings, closed, window)
+    o = 0
+    for ring, is_closed, length, k, stay in zip(rings, closed, lengths, count, stays, strict=True):
+        if is_closed and length < 2.5:
+            assert k == 1 and not stay
+        else:
+            want = round(length) if is_closed else round(length) + 1
+            assert k == max(want, 3 if is_closed else 1)
+            assert stay == is_closed
+            pts = out[o:o + k]
+            poly = np.concatenate([ring, ring[:1]]) if is_closed else ring
+            a, b = poly[:-1], poly[1:]
+            ab = b - a
+            along = np.einsum("pij,ij->pi", pts[:, None, :] - a[None], ab)
+            t = np.clip(along / np.einsum("ij,ij->i", ab, ab), 0, 1)
+            foot = a[None] + t[..., None] * ab[None]
+            dist = np.hypot(*(pts[:, None, :] - foot).transpose(2, 0, 1))
+            seg = np.argmin(dist, axis=1)
+            assert np.all(dist[np.arange(k), seg] < 1e-9 * max(1.0, np.abs(ring).max()))
+            # In order along the chain: the arc length of each point increases.
+            cum = np.r_[0, np.cumsum(np.hypot(*ab.T))]
+            arc = cum[seg] + t[np.arange(k), seg] * np.hypot(*ab[seg].T)
+            assert np.all(np.diff(arc) > -1e-9)
+        o += k

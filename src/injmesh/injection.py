@@ -13,7 +13,8 @@ built.  The front is a set of *chains*: polylines of nodes with the unmeshed reg
 2. **Space along the front.**  The injected points of a chain, in order, form the new chain.  It
    is re-laid at equal h-length, ``round(int ds / h)`` segments (closed chains keep at least
    three; a closed chain shorter than 2.5 h collapses to its centroid).  A straight front with
-   constant h is left exactly as injected (the staggered, equilateral layout).
+   constant h is left exactly as injected (the staggered, equilateral layout); the strips' rings
+   keep their points (see below).
 3. **Merge fronts.**  A new point is rejected when it is outside the domain (``d > 0``), or
    closer than ``MERGE * h`` to any existing node (earlier layers, other fronts, the boundary), or
    to a lower-numbered point of the same layer.  This is how fronts that meet — across a narrow
@@ -57,6 +58,17 @@ from a wall, a region's side on it) always advance with the outer front: in the 
 between a wall and a curve leaving it the two fronts must meet as at a corner (a crack
 leaving a wall at 15 degrees got a triangle of q 0.389 next to its tip when staged, 0.446
 otherwise).
+
+**The strips' rings stay in step.**  A ring's injected layer is in step with the layer
+before (each point the apex over one of its edges), but it needs a few points more (going
+out) or fewer (going in) than it has: re-laid uniformly (step 2), it slipped out of step by
+that many spacings, a little at every point, and smoothing then moved the strips' nodes
+0.15-0.18 h sideways on average (0.07-0.09 h now, on the 1e5-node square with two
+inclusions of ``benchmarks/regions.py``).  So the strips' layers keep their injected points
+and take up the points gained or lost in a few windows of at most ``RING_WINDOW`` segments,
+where the slip builds (evenly round a ring, at a crack's ends), each re-laid at equal
+spacing (:func:`~injmesh.kernels.inject.relay`); a chain too short for such windows is
+re-laid uniformly, as are the layers of every other front.
 
 After the last layer, **gaps the fronts never reached are filled** (:func:`_fill_gaps`): fronts
 from a crinkled outline break into short runs that die before they meet, and the equilateral
@@ -196,7 +208,7 @@ def inject_nodes(
     if len(inner.points) == 0:
         run(_loops_front(boundary), None)
     else:
-        rest = run(_loops_front(inner), INNER_LAYERS)
+        rest = run(_loops_front(inner), INNER_LAYERS, RING_WINDOW)
         run(_loops_front(boundary), None)
         # What the outer fronts do not reach (inside an inclusion, inside a curved wall): the
         # lattice where h is uniform, the strips' own fronts where it is not.
@@ -219,6 +231,21 @@ def inject_nodes(
 INNER_LAYERS = 2
 #: ... when h at every loop's nodes is within this fraction of the smallest.
 STAGED_SPREAD = 0.1
+#: The strips' layers (``INNER_LAYERS``) keep their rings in step: each layer keeps its
+#: injected points (the apexes over the layer before) and takes up the points it gains or
+#: loses in windows of at most RING_WINDOW segments where the slip builds
+#: (:func:`~injmesh.kernels.inject.relay`), instead of being re-laid uniformly, which put its
+#: rows out of step with the layer before all round.  Measured, uniform -> windows of 12: the
+#: 1e5-node square with two inclusions and a crack (``benchmarks/regions.py``) 50 -> 44
+#: smoothing steps, 1.32x -> 1.21x the plain square's time (which is unchanged: its walls are
+#: straight, its own fronts are not windowed), the two regions alone 1.27x -> 1.17x, the same
+#: circles as holes 0.96x -> 0.91x; at 1e6 nodes 1.23x -> 1.16x; a plate with 5 x 5 holes at
+#: h = 0.005 0.285 -> 0.269 s; an annulus at h = 0.005 0.569 -> 0.537 s, q_min 0.829 -> 0.895;
+#: a disc 0.604 -> 0.579 s, q_min 0.829 -> 0.878.  Windows of 6 to 24 segments gave the same
+#: times (q_min at 1e5 0.866-0.890; 12: 0.890).  Only the strips: every front windowed (the
+#: paper's cases) moved their q_min both ways by up to 0.08, and the strips' fronts resuming
+#: on a graded h (a disc graded 20:1) did not converge in 1000 steps.
+RING_WINDOW = 12
 #: Outer loops with at least half their nodes turning less than this (radians) lay a lattice
 #: with their own fronts, and only the holes and inner curves go first; otherwise every loop
 #: lays its strip and the lattice fills the rest (see the module documentation).
@@ -298,8 +325,9 @@ class _Advance:
         if self.n_placed > self.max_nodes:
             raise NodeBudgetError(f"node injection passed max_nodes={self.max_nodes} ({where})")
 
-    def __call__(self, front: Front, layers: int | None) -> Front:
-        """Advance ``front`` until it is exhausted, or ``layers`` layers; the front left."""
+    def __call__(self, front: Front, layers: int | None, window: int = 0) -> Front:
+        """Advance ``front`` until it is exhausted, or ``layers`` layers; the front left.
+        ``window``: see :func:`_respace`."""
         domain, h, grid = self.domain, self.h, self.grid
         max_layers = _layer_cap(domain, grid.h_min)
         done = 0
@@ -307,7 +335,7 @@ class _Advance:
             done += 1
             self.layer += 1
             cand = _inject(front, domain, h)
-            cand = _respace(cand, domain, h)
+            cand = _respace(cand, domain, h, window)
             keep = _admissible(domain, h, cand.points, grid)
             if not keep.any():
                 return _survivors(cand, keep)
@@ -576,8 +604,10 @@ def _inject(front: Front, domain: Domain, h: SizeFn) -> Front:
     return Front(pts, lengths, front.closed.copy())
 
 
-def _respace(front: Front, domain: Domain, h: SizeFn) -> Front:
-    """Re-lay every chain at equal h-length, ``round(S)`` segments (Step 2 of the module doc)."""
+def _respace(front: Front, domain: Domain, h: SizeFn, window: int = 0) -> Front:
+    """Re-lay every chain at equal h-length, ``round(S)`` segments (Step 2 of the module doc);
+    with ``window``, closed chains keep their points and take up the change in windows
+    (``RING_WINDOW``, :func:`~injmesh.kernels.inject.relay`)."""
     from .kernels.inject import chain_polylines, relay
 
     front = _drop_empty(front)
@@ -589,7 +619,7 @@ def _respace(front: Front, domain: Domain, h: SizeFn) -> Front:
     same = pchain[1:] == pchain[:-1]
     seg = poly[1:] - poly[:-1]
     ds = np.where(same, np.hypot(*seg.T) / _h_inside(domain, h, 0.5 * (poly[1:] + poly[:-1])), 0.0)
-    out, count, closed = relay(poly, pchain, ds, front.closed, front.points, start)
+    out, count, closed = relay(poly, pchain, ds, front.closed, front.points, start, window)
     return Front(out, count, closed)
 
 

@@ -404,9 +404,54 @@ def chain_polylines(points: np.ndarray, start: np.ndarray,
     return poly, pchain
 
 
+#: Fewest segments in a window of :func:`relay`.
+MIN_WINDOW = 4
+
+
+@numba.njit(cache=True)
+def _windowed(s, f, n_in, m, total, base, window, target, o):  # type: ignore[no-untyped-def]
+    """A closed chain's ``m`` new abscissae written at ``target[o:]``, keeping its ``n_in``
+    vertices (abscissae ``s[f:f + n_in + 1]``, the first repeated at the end) and taking up the
+    points gained or lost in windows of ``window`` segments re-laid at equal spacing.
+
+    Vertex i lies at ``(s_i - s_f) * m / total`` in the uniform layout; kept, it is number
+    ``i + done`` (``done``: points gained so far).  Their difference, the slip, runs from 0 to
+    ``m - n_in``.  A window opens at vertex i when the slip at its far end rounds to another
+    value than ``done``, and takes up the difference (at most half its segments): the slip is
+    taken up where it builds (evenly round a ring, at the crowded ends of a crack's loop).
+    Returns the number of abscissae written, which is ``m`` unless the windows could not take
+    the slip up (then the caller lays the chain uniformly)."""
+    k = 0
+    done = 0
+    i = 0
+    cap = target.shape[0] - o
+    while i < n_in:
+        span = min(window, n_in - i)
+        ahead = int(np.rint((s[f + i + span] - s[f]) * m / total - (i + span))) - done
+        if ahead != 0:
+            # At most half the window's points at once (a crowded end takes up several).
+            ahead = max(min(ahead, span // 2), -(span // 2))
+            pts = span + ahead
+            if pts < 1 or k + pts > cap:
+                return -1
+            sa, sb = s[f + i], s[f + i + span]
+            for q in range(pts):
+                target[o + k] = sa + q * (sb - sa) / pts + base
+                k += 1
+            done += ahead
+            i += span
+        else:
+            if k + 1 > cap:
+                return -1
+            target[o + k] = s[f + i] + base
+            k += 1
+            i += 1
+    return k
+
+
 @numba.njit(cache=True)
 def relay(poly: np.ndarray, pchain: np.ndarray, ds: np.ndarray, closed: np.ndarray, points: np.ndarray,
-          start: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+          start: np.ndarray, window: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each chain re-laid at equal h-length (injection's step 2), given the h-length ``ds`` of
     every step between consecutive vertices of :func:`chain_polylines` (0 across chains).
 
@@ -414,6 +459,13 @@ def relay(poly: np.ndarray, pchain: np.ndarray, ds: np.ndarray, closed: np.ndarr
     least three); a closed chain shorter than 2.5 collapses to its centroid.  One increasing
     abscissa runs over all chains (each offset by its predecessors' lengths plus one), as the
     interpolation is done in one call.
+
+    With ``window > 0`` a closed chain whose count changes by d keeps its vertices and takes
+    the d points up in windows of at most ``window`` segments (:func:`_windowed`), when at
+    least ``MIN_WINDOW`` segments fit in each of ``2 (|d| + 1)`` windows; otherwise, and for
+    open chains, it is laid uniformly.  The vertices of a ring's injected layer are the apexes
+    over the edges of the layer before, in step with it; laid uniformly with d more points,
+    the new layer slips out of step by d spacings, a little at every vertex.
 
     Returns the new points, their count per chain and which chains stay closed.
     """
@@ -462,6 +514,17 @@ def relay(poly: np.ndarray, pchain: np.ndarray, ds: np.ndarray, closed: np.ndarr
     piece = np.empty(n_out, dtype=np.int64)
     o = 0
     for c in range(n_chain):
+        n_in = last[c] - first[c]
+        d = count[c] - n_in
+        span = min(window, n_in // (2 * (abs(d) + 1)))
+        if closed[c] and not collapse[c] and d != 0 and span >= MIN_WINDOW:
+            k_out = _windowed(s, first[c], n_in, count[c], total[c], offset[c] - s[first[c]], span,
+                              target, o)
+            if k_out == count[c]:
+                for q in range(o, o + k_out):
+                    piece[q] = c
+                o += k_out
+                continue
         denom = count[c] if closed[c] else max(count[c] - 1, 1)
         for k in range(count[c]):
             target[o] = offset[c] + k * total[c] / denom
