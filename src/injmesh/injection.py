@@ -236,15 +236,15 @@ STAGED_SPREAD = 0.1
 #: loses in windows of at most RING_WINDOW segments where the slip builds
 #: (:func:`~injmesh.kernels.inject.relay`), instead of being re-laid uniformly, which put its
 #: rows out of step with the layer before all round.  Measured, uniform -> windows of 12: the
-#: 1e5-node square with two inclusions and a crack (``benchmarks/regions.py``) 50 -> 44
-#: smoothing steps, 1.32x -> 1.21x the plain square's time (which is unchanged: its walls are
-#: straight, its own fronts are not windowed), the two regions alone 1.27x -> 1.17x, the same
-#: circles as holes 0.96x -> 0.91x; at 1e6 nodes 1.23x -> 1.16x; a plate with 5 x 5 holes at
-#: h = 0.005 0.285 -> 0.269 s; an annulus at h = 0.005 0.569 -> 0.537 s, q_min 0.829 -> 0.895;
-#: a disc 0.604 -> 0.579 s, q_min 0.829 -> 0.878.  Windows of 6 to 24 segments gave the same
-#: times (q_min at 1e5 0.866-0.890; 12: 0.890).  Only the strips: every front windowed (the
-#: paper's cases) moved their q_min both ways by up to 0.08, and the strips' fronts resuming
-#: on a graded h (a disc graded 20:1) did not converge in 1000 steps.
+#: 1e5-node square with two inclusions and a crack (``benchmarks/regions.py``) 50 -> 45
+#: smoothing steps, 1.32x -> 1.20x the plain square's time (which is unchanged: its walls are
+#: straight, its own fronts are not windowed), the two regions alone 1.26x -> 1.17x, the same
+#: circles as holes 0.94x -> 0.92x; at 1e6 nodes 1.25x -> 1.15x and 1.20x -> 1.16x; a plate
+#: with 5 x 5 holes at h = 0.005 0.287 -> 0.267 s; an annulus at h = 0.005 0.558 -> 0.538 s,
+#: q_min 0.829 -> 0.895; a disc 0.595 -> 0.567 s, q_min 0.829 -> 0.878.  Windows of 6 to 24
+#: segments gave the same times (q_min at 1e5 0.866-0.890; 12: 0.890).  Only the strips:
+#: every front windowed (the paper's cases) moved their q_min both ways by up to 0.08, and the
+#: strips' fronts resuming on a graded h (a disc graded 20:1) did not converge in 1000 steps.
 RING_WINDOW = 12
 #: Outer loops with at least half their nodes turning less than this (radians) lay a lattice
 #: with their own fronts, and only the holes and inner curves go first; otherwise every loop

@@ -406,6 +406,20 @@ def chain_polylines(points: np.ndarray, start: np.ndarray,
 
 #: Fewest segments in a window of :func:`relay`.
 MIN_WINDOW = 4
+#: :func:`relay` lays a chain with windows only where no step along it is shorter than this
+#: (in h): shorter ones are apexes crowding at a corner or inside a crack's bend, which the
+#: merge test, not a window, should thin (1 % of 4000 fuzzed cases changed: 27 better, 15
+#: worse, up to 0.14 either way; windowed there too, 43 better and 36 worse, down to 0.15).
+RING_SHORTEST = 0.5
+
+
+@numba.njit(cache=True)
+def _uncrowded(ds, f, n_in):  # type: ignore[no-untyped-def]
+    """Whether every step ``ds[f:f + n_in]`` of a chain is at least ``RING_SHORTEST``."""
+    for i in range(n_in):
+        if ds[f + i] < RING_SHORTEST:
+            return False
+    return True
 
 
 @numba.njit(cache=True)
@@ -462,10 +476,11 @@ def relay(poly: np.ndarray, pchain: np.ndarray, ds: np.ndarray, closed: np.ndarr
 
     With ``window > 0`` a closed chain whose count changes by d keeps its vertices and takes
     the d points up in windows of at most ``window`` segments (:func:`_windowed`), when at
-    least ``MIN_WINDOW`` segments fit in each of ``2 (|d| + 1)`` windows; otherwise, and for
-    open chains, it is laid uniformly.  The vertices of a ring's injected layer are the apexes
-    over the edges of the layer before, in step with it; laid uniformly with d more points,
-    the new layer slips out of step by d spacings, a little at every vertex.
+    least ``MIN_WINDOW`` segments fit in each of ``2 (|d| + 1)`` windows and no step is shorter
+    than ``RING_SHORTEST``; otherwise, and for open chains, it is laid uniformly.  The vertices
+    of a ring's injected layer are the apexes over the edges of the layer before, in step with
+    it; laid uniformly with d more points, the new layer slips out of step by d spacings, a
+    little at every vertex.
 
     Returns the new points, their count per chain and which chains stay closed.
     """
@@ -517,7 +532,7 @@ def relay(poly: np.ndarray, pchain: np.ndarray, ds: np.ndarray, closed: np.ndarr
         n_in = last[c] - first[c]
         d = count[c] - n_in
         span = min(window, n_in // (2 * (abs(d) + 1)))
-        if closed[c] and not collapse[c] and d != 0 and span >= MIN_WINDOW:
+        if closed[c] and not collapse[c] and d != 0 and span >= MIN_WINDOW and _uncrowded(ds, first[c], n_in):
             k_out = _windowed(s, first[c], n_in, count[c], total[c], offset[c] - s[first[c]], span,
                               target, o)
             if k_out == count[c]:
