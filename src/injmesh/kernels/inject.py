@@ -408,8 +408,8 @@ def chain_polylines(points: np.ndarray, start: np.ndarray,
 MIN_WINDOW = 4
 #: :func:`relay` lays a chain with windows only where no step along it is shorter than this
 #: (in h): shorter ones are apexes crowding at a corner or inside a crack's bend, which the
-#: merge test, not a window, should thin (1 % of 4000 fuzzed cases changed: 27 better, 15
-#: worse, up to 0.14 either way; windowed there too, 43 better and 36 worse, down to 0.15).
+#: merge test, not a window, should thin (of 4000 fuzzed cases 27 got a better q_min, by up to
+#: 0.06, and 15 a worse one, by up to 0.14; windowed there too, 43 and 36, down to 0.15).
 RING_SHORTEST = 0.5
 
 
