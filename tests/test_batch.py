@@ -354,7 +354,12 @@ def test_cli_signal_stops_cleanly(tmp_path, signum, status):
                          for k in range(40)])
     out = tmp_path / "out"
     env = dict(os.environ, PYTHONPATH=str(SRC))
-    proc = subprocess.Popen([sys.executable, "-m", "injmesh", "batch", str(specs), "--out", str(out),
+    # ``python -m injmesh batch ...`` with SIGINT handled as a terminal's Ctrl-C is: a test run
+    # in the background of a non-interactive shell (nohup, ``cmd &``) starts its children with
+    # SIGINT ignored, and they rightly keep ignoring it.
+    run_cli = ("import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+               "sys.argv[0] = 'injmesh'; runpy.run_module('injmesh', run_name='__main__', alter_sys=True)")
+    proc = subprocess.Popen([sys.executable, "-c", run_cli, "batch", str(specs), "--out", str(out),
                              "--workers", "0"], env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:

@@ -389,7 +389,10 @@ def test_wkt_longer_than_a_file_name(tmp_path, capsys):
 
 
 SLOW_WRITE = """
-import pathlib, sys, time
+import pathlib, signal, sys, time
+# A child started with SIGINT ignored (a test run in the background of a non-interactive
+# shell: nohup, ``cmd &``) keeps ignoring it, as it should; a user's Ctrl-C is what is tested.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 import injmesh.io as io
 
 original = io._write_meshio
