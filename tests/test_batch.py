@@ -64,8 +64,9 @@ def summary_rows(out: Path) -> list[dict[str, str]]:
 
 def mesh_files(out: Path) -> dict[str, str]:
     """Every mesh file in ``out`` with its hash (no summary, no specs, no temporary files)."""
+    # A temporary file (``.name.tmp.npz``) may be renamed between the listing and the reading.
     return {p.name: sha256(p) for p in sorted(out.iterdir())
-            if p.suffix in (".npz", ".msh", ".vtu", ".xdmf", ".mesh")}
+            if p.suffix in (".npz", ".msh", ".vtu", ".xdmf", ".mesh") and not p.name.startswith(".")}
 
 
 def no_temporary_files(out: Path) -> bool:
