@@ -445,8 +445,8 @@ def _windowed(s, f, n_in, m, total, base, window, target, o):  # type: ignore[no
         if ahead != 0:
             # At most half the window's points at once (a crowded end takes up several).
             ahead = max(min(ahead, span // 2), -(span // 2))
-            pts = span + ahead
-            if pts < 1 or k + pts > cap:
+            pts = span + ahead  # at least 1: |ahead| <= span // 2
+            if k + pts > cap:
                 return -1
             sa, sb = s[f + i], s[f + i + span]
             for q in range(pts):
