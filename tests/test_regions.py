@@ -320,6 +320,88 @@ def test_a_hole_tangent_to_a_box_side_in_its_middle(box, h):
     assert mesh.region_areas()[1] == pytest.approx(region.exact_brep().area, rel=(h / 0.2) ** 2 / 8)
 
 
+@pytest.mark.parametrize("h", [0.02, 0.035, 0.05])
+def test_a_box_side_tangent_to_a_hole_at_the_box_corner(h):
+    """A box whose side x = 0.75 touches a circular hole at the box's corner (0.75, 0.375), the
+    side tangent to the circle there (found by fuzzing): the box leaves the hole at zero angle,
+    and the box's own projection sent the points Step 1 laid beside the junction onto the
+    hole, where they were nodes on the boundary but not boundary nodes (19 lost boundary
+    segments, 40 degenerate triangles, MeshError at every h).  The piece now projects off the
+    wall it leaves (``regions._OffTheWall``)."""
+    domain = SQUARE - Circle((0.5, 0.375), 0.25)
+    box = Rectangle((0.625, 0.375), (0.75, 0.625)) & domain
+    with pytest.warns(UserWarning, match="region 'box' runs within 0.05 h of the boundary"):
+        mesh = injmesh.generate(domain, h, regions={"box": box})
+    assert_valid_mesh(mesh, domain)
+    assert mesh.quality().min() > 0.1  # the zero angle where the side leaves the hole, bridged
+    assert mesh.region_areas()[1] == pytest.approx(box.exact_brep().area, rel=(h / 0.25) ** 2 / 4)
+
+
+#: A rectangle whose bottom side a disc's arc crosses at 9 degrees, 0.005 below its top: the
+#: region is a cap 0.005 thick (found by fuzzing, full precision).
+CAP_BOX = Rectangle((0.11592201531006263, 0.5480820846990977), (0.2826234529372178, 0.6646951584799614))
+CAP = Circle((0.16169309637914225, 0.15994795163288777), 0.3931237883145167) & CAP_BOX
+
+
+@pytest.mark.parametrize("with_curve", [False, True])
+def test_a_thin_cap_leaving_the_boundary_at_a_narrow_angle(with_curve):
+    """The cap's ends run within the merge band of the rectangle's side, so its arc meets the
+    side where it leaves the band, at about 9 degrees; the region's projection (the cap's
+    boundary, whose chord is that side) put one of Step 1's nodes beside the junction on the
+    side: a lost boundary segment, MeshError (with h = 0.0235).  Its curve now keeps its nodes
+    off the side."""
+    curves = {"c": np.array([[0.16991314691180948, 0.6040088024413336],
+                             [0.14178511802698462, 0.5997524105915645],
+                             [0.25271902914052236, 0.5886816833465333]])} if with_curve else None
+    with pytest.warns(UserWarning, match="region 'cap' runs within 0.05 h of the boundary"):
+        mesh = injmesh.generate(CAP_BOX, 0.0235, regions={"cap": CAP}, curves=curves)
+    assert_valid_mesh(mesh, CAP_BOX)
+    assert mesh.quality().min() > (0.2 if with_curve else 0.5)  # the curve crosses the cap at a narrow angle
+    # The stretches within the band along the side are the side's: the cap loses those slivers.
+    assert mesh.region_areas()[1] == pytest.approx(CAP.exact_brep().area, rel=0.03)
+
+
+def test_pieces_leaving_a_wall_narrowly_project_off_it():
+    """Points near the box's junction with the hole are projected onto the box's own side, not
+    onto the hole, by the projection its piece carries; a piece leaving a wall at a wide angle
+    keeps the region's own projection (compiled in the smoothing)."""
+    from injmesh.geometry.regions import _OffTheWall, build_constraints
+
+    domain = SQUARE - Circle((0.5, 0.375), 0.25)
+    box = Rectangle((0.625, 0.375), (0.75, 0.625)) & domain
+    with pytest.warns(UserWarning, match="runs within"):
+        cons = build_constraints(domain, {"box": box}, None, 0.02)
+    narrow = [p for p in cons.pieces if isinstance(p.project, _OffTheWall)]
+    assert len(narrow) == 1
+    piece = narrow[0]
+    rng = np.random.default_rng(3)
+    # A cloud around the box's side x = 0.75 up from the junction, within 3 h of it.
+    junction = piece.points[0]
+    q = np.c_[np.full(2000, 0.75), junction[1] + rng.uniform(0.0, 0.06, 2000)]
+    q += rng.normal(scale=0.004, size=(2000, 2))
+    def off_the_piece(out):
+        seg = piece.points[1:] - piece.points[:-1]
+        t = np.clip(np.einsum("qsk,sk->qs", out[:, None] - piece.points[None, :-1], seg)
+                    / np.einsum("sk,sk->s", seg, seg), 0.0, 1.0)
+        foot = piece.points[None, :-1] + t[..., None] * seg[None]
+        return np.hypot(*(out[:, None] - foot).transpose(2, 0, 1)).min(axis=1) > 1e-6
+
+    def on_the_hole(out):
+        # (Within the merge band of the junction, the chord and the hole are one.)
+        at_junction = np.hypot(*(out - piece.points[0]).T) <= 0.05 * 0.02
+        return (np.abs(domain.sdf(out)) <= 1e-9) & ~at_junction
+
+    # The region's own projection puts some of them on the hole, beside the junction...
+    assert on_the_hole(box.project(q)).any()
+    # ... the piece's, none: each is on the box's side, or on the piece's chord from the
+    # junction (put on the hole, 0.001 from the side) where the side is within the band.
+    out = piece.project(q)
+    assert not on_the_hole(out).any()
+    assert np.all((np.abs(box.sdf(out)) <= 1e-9) | ~off_the_piece(out))
+    wide = build_constraints(SQUARE, {"box": Rectangle((0.25, 0.0), (0.75, 0.5))}, None, 0.02)
+    assert not any(isinstance(p.project, _OffTheWall) for p in wide.pieces)
+
+
 @pytest.mark.parametrize("h", [0.05, 0.02])
 def test_a_box_corner_touching_the_boundary_tangentially(h):
     """A box whose corner touches a circular part of the boundary, its side tangent to the
