@@ -361,6 +361,41 @@ def test_a_thin_cap_leaving_the_boundary_at_a_narrow_angle(with_curve):
     assert mesh.region_areas()[1] == pytest.approx(CAP.exact_brep().area, rel=0.03)
 
 
+@pytest.mark.parametrize("seed", [1806, 6315, 6446, 6741, 7135, 8087])
+def test_fuzzed_regions_beside_a_wall_mesh(seed):
+    """The six ``MeshError``s of ``fuzz_csg.py --count 9000``, all regions within the merge band
+    of a wall: a disc tangent to a box region's side at the box's corner (its junction 0.03 h
+    from the corner, now the corner), a disc within the band next to a corner of the domain, a
+    box's side tangent to a hole at its corner, a disc's arc 9 degrees off a side, a disc
+    clipped 0.005 thick along a side, a polygon region along a side (nodes beside the
+    junctions projected onto the wall).  Each meshes now, valid, its regions' areas adding up
+    and each region's within what the band along its walls holds (the stretches along a wall
+    are the wall's)."""
+    import sys
+    from pathlib import Path
+
+    from injmesh.sizing.background import exact_boundary
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from fuzz_csg import draw
+
+    domain, regions, curves, size, _ = draw(seed)
+    # (Each warns of the band; some of cusps and narrow angles too.)
+    with pytest.warns(UserWarning) as record:
+        mesh = injmesh.generate(domain, size, regions=regions, curves=curves or None)
+    assert any("runs within 0.05 h of" in str(w.message) for w in record)
+    assert mesh.stats.valid
+    assert mesh.quality().min() > 0.05
+    areas = mesh.region_areas()
+    assert areas.sum() == pytest.approx(exact_boundary(domain).area, rel=0.01)
+    h_min = float(np.min(np.broadcast_to(size(mesh.points) if callable(size) else size, len(mesh.points))))
+    for k, region in enumerate(regions.values(), start=1):
+        brep = exact_boundary(region)
+        length = sum(float(np.hypot(*np.diff(np.vstack([lp, lp[:1]]), axis=0).T).sum())
+                     for lp in brep.boundary_loops(h_min / 4))
+        assert abs(areas[k] - brep.area) <= 0.01 * brep.area + 0.05 * h_min * length
+
+
 def test_pieces_leaving_a_wall_narrowly_project_off_it():
     """Points near the box's junction with the hole are projected onto the box's own side, not
     onto the hole, by the projection its piece carries; a piece leaving a wall at a wide angle

@@ -17,8 +17,9 @@ warning: no triangle in such an angle can be well shaped.  A region tangent to t
 boundary or to an earlier region (a *wall*) follows the wall where it runs within
 ``BOUNDARY_MERGE * h_min`` of it, near parallel, and meets it where it leaves that band: the
 cusps beside the contact, which no triangle fills, are bridged.  A piece that leaves a wall at
-less than ``WALL_ANGLE`` degrees projects onto itself, never onto the wall beside the junction
-(:class:`_OffTheWall`).  A user curve passing a fixed
+less than ``WALL_ANGLE`` degrees, or ends within the band, projects onto itself, never onto
+the wall beside the junction (:class:`_OffTheWall`); an end put on a wall within
+``BOUNDARY_MERGE * h_min`` of one of its corners is that corner.  A user curve passing a fixed
 vertex (a region's corner, a corner of the boundary) within ``JUNCTION_MERGE * h_min`` is made
 to pass through it.  Inputs are checked here, once: a region that leaves the
 domain, two regions that overlap, a curve that leaves the domain or crosses itself each raise
@@ -379,9 +380,22 @@ def _region_pieces(
             for e, beyond in ((0, order[(run - 1) % len(loop)]), (len(pts) - 1, order[end % len(loop)])):
                 wall = walls[wall_of[beyond]]
                 gap = abs(float(wall.sdf(pts[e:e + 1])[0]))
-                if eps < gap <= merge:
+                moved = eps < gap <= merge
+                if moved:
                     pts[e] = wall.project(pts[e:e + 1])[0]
-                if _leaves_narrowly(wall, pts, e, 0.5 * h_min) and all(w is not wall for w in narrow):
+                    # Within the merge distance of one of the wall's corners, it is that
+                    # corner: two junctions that close are one (a disc tangent to a box's
+                    # side at the box's corner ended 0.03 h from it, and the triangles
+                    # between the two had no area; found by fuzzing).
+                    wc = np.asarray(wall.corners(), dtype=np.float64).reshape(-1, 2)
+                    if len(wc):
+                        dc = np.hypot(*(wc - pts[e]).T)
+                        if dc.min() <= merge:
+                            pts[e] = wc[int(np.argmin(dc))]
+                # An end put on the wall, or leaving it narrowly: the region's boundary beside
+                # the junction lies within the band of the wall, off the piece.
+                if (moved or _leaves_narrowly(wall, pts, e, 0.5 * h_min)) \
+                        and all(w is not wall for w in narrow):
                     narrow.append(wall)
             if narrow:
                 # Each end moved onto its wall, then the region's curve from where it was: the
@@ -404,9 +418,10 @@ def _region_pieces(
 
 
 #: A region's piece that leaves a wall (the boundary, an earlier region) at less than this many
-#: degrees projects through :class:`_OffTheWall`: the merge test's near-parallel angle.  The
-#: failures it mends were at 0-9 degrees; such a piece is projected in Python in the smoothing,
-#: which made a lens region 20 degrees off a side 30 % slower at 72,000 nodes (same mesh).
+#: degrees, or whose end was put on the wall from within the merge band, projects through
+#: :class:`_OffTheWall`: the merge test's near-parallel angle.  The failures it mends were at
+#: 0-9 degrees; such a piece is projected in Python in the smoothing, which made a lens region
+#: 20 degrees off a side 30 % slower at 72,000 nodes (the same mesh).
 WALL_ANGLE = MERGE_ANGLE
 
 
@@ -428,7 +443,8 @@ def _leaves_narrowly(wall: Domain, pts: FloatArray, e: int, reach: float) -> boo
 
 
 class _OffTheWall:
-    """A region's projection for one of its pieces that leaves a wall at a narrow angle.
+    """A region's projection for one of its pieces that leaves a wall at a narrow angle (or
+    whose end was put on the wall from within the merge band).
 
     Beside such a junction the region's boundary runs on (or within the merge band of) the
     wall, a fraction of h from the piece: the region's own projection sent points near the
