@@ -1514,12 +1514,20 @@ def _thinned(centres: FloatArray, apex: FloatArray, rate: float) -> tuple[FloatA
     return centres[pick], apex[pick]
 
 
+#: Cells of :class:`_Cones`' grid of lower bounds per cone (the corner caps' ``CONE_CELLS`` is
+#: 2).  The index gives the brute-force minimum bit for bit at any count; with a quarter of the
+#: cells it is built in 1.3 ms rather than 3.0 (the square with a hole and an inclusion, 1304
+#: cones), and 3.7 million evaluations (a 1e5-node square with inclusions near the walls) take
+#: the same 31 ms.
+GAP_CONE_CELLS = 0.5
+
+
 class _Cones:
     """``min(h(p), min_c (s_c + rate |p - c|))`` over the points c (the brute-force minimum bit
     for bit, :func:`~injmesh.kernels.outline.corner_cones`)."""
 
     def __init__(self, h: SizeFunction, centres: FloatArray, apex: FloatArray, rate: float) -> None:
-        from .boundary import CONE_CELLS, CONE_LEAF
+        from .boundary import CONE_LEAF
         from .kernels.outline import cone_index
 
         self.h, self.rate = h, rate
@@ -1531,7 +1539,7 @@ class _Cones:
         reach = (h_max - float(apex.min())) / rate
         extent = float(np.ptp(centres, axis=0).max())
         margin = min(reach, extent) if extent > 0.0 else reach
-        self.index = cone_index(centres, apex, float(rate), CONE_LEAF, margin, CONE_CELLS * len(centres),
+        self.index = cone_index(centres, apex, float(rate), CONE_LEAF, margin, GAP_CONE_CELLS * len(centres),
                                 h_max)
 
     def __call__(self, p: FloatArray) -> FloatArray:
