@@ -392,3 +392,25 @@ def test_a_corner_near_another_loop_stays_on_its_own(gap, h) -> None:
     covered = 0.5 * np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]).sum()
     # The disc (less its chords' segments) and the island: a 0.3 x 1 rectangle and a triangle.
     assert covered == pytest.approx(math.pi + 0.3 + 0.5 * (0.3 - gap), rel=3e-3)
+
+
+def test_a_triangle_cut_out_across_a_rectangle_leaving_a_slit():
+    """A triangle whose tip pokes 0.006 out of a rectangle's side (0.08 h, found by fuzzing:
+    ``fuzz_csg.py`` seed 10662) cuts it in two parts with a slit between them.  The
+    relaxation's flips kept a triangle across the slit (every segment still an edge, the
+    triangle outside them): MeshError.  A mesh failing its check now has such triangles
+    dropped, and is returned when that leaves it valid."""
+    import sys
+    from pathlib import Path
+
+    from injmesh.sizing.background import exact_boundary
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from fuzz_csg import draw
+
+    domain, _, _, size, _ = draw(10662)
+    mesh = injmesh.generate(domain, size)
+    assert_valid_mesh(mesh, domain)
+    assert mesh.quality().min() > 0.5
+    # Both parts, straight-sided: the triangles fill them exactly, nothing of the slit.
+    assert float(mesh.areas().sum()) == pytest.approx(exact_boundary(domain).area, rel=1e-9)

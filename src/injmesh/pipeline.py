@@ -394,7 +394,7 @@ def _injection(
         walls=remap[bnd.edges], smoothing=smoothing, max_iterations=max_iterations, callback=callback,
     )
     seconds["smoothing"] = time.perf_counter() - t
-    edges, tags, defects = _checked_boundary(domain, bnd, result)
+    result, edges, tags, defects = _checked_boundary(domain, bnd, result)
     stats = _stats(result, len(bnd.points), len(points), seconds, defects)
     return Mesh(
         points=result.points,
@@ -474,21 +474,53 @@ def _merge_touching(
 
 def _checked_boundary(
     domain: Domain, bnd: BoundaryMesh, result: SmoothResult
-) -> tuple[NDArray[np.intp], NDArray[np.intp], list[Defect]]:
-    """The mesh's boundary edges, their loop tags and the mesh's defects.
+) -> tuple[SmoothResult, NDArray[np.intp], NDArray[np.intp], list[Defect]]:
+    """The result, the mesh's boundary edges, their loop tags and the mesh's defects.
 
     The boundary edges are Step 1's segments (some split by recovery), tagged with the loop
     each came from; a valid mesh has exactly these as its boundary edges.  When one is lost the
     mesh's actual boundary is reported instead of segments it does not have.
+
+    A mesh whose boundary check fails while every segment is an edge may hold triangles
+    outside the domain that the relaxation's flips kept (one across a slit 0.08 h wide between
+    two parts of a domain, found by fuzzing): such triangles, outside by the segments' sides
+    (:func:`~injmesh.triangulation.inside_mask`, as every triangulation is judged), are
+    dropped, and the result is kept if it then passes.  Only a mesh that failed pays for this.
     """
     edges = result.walls
     tags = bnd.node_loop[bnd.edges[result.wall_origin, 0]]
     defects = mesh_defects(result.points, result.triangles, walls=edges, sdf=domain.sdf,
                            diameter=domain.diameter)
+    if defects:
+        mended = _outside_dropped(domain, result)
+        if mended is not None:
+            again = mesh_defects(mended.points, mended.triangles, walls=edges, sdf=domain.sdf,
+                                 diameter=domain.diameter)
+            if not again:
+                return mended, edges, tags, []
     if any(d.kind == "lost boundary segment" for d in defects):
         edges = boundary_edges(result.triangles)
         tags = _nearest_tags(result.points, edges, result.walls, tags)
-    return edges, tags, list(defects)
+    return result, edges, tags, list(defects)
+
+
+def _outside_dropped(domain: Domain, result: SmoothResult) -> SmoothResult | None:
+    """``result`` without its triangles outside the domain by its segments' sides, or None when
+    it has none, a segment is lost or a node would be left in no triangle."""
+    from .triangulation import inside_mask
+
+    walls = result.walls
+    if len(walls) == 0 or np.any(walls < 0):
+        return None
+    keep = inside_mask(result.points, result.triangles, domain.sdf, walls)
+    if keep.all():
+        return None
+    tri = result.triangles[keep]
+    used = np.zeros(len(result.points), dtype=bool)
+    used[tri.ravel()] = True
+    if not used.all():
+        return None
+    return replace(result, triangles=tri)
 
 
 def _stats(result: SmoothResult, boundary_nodes: int, initial_nodes: int, seconds: dict[str, float],
@@ -1062,7 +1094,7 @@ def _injection_with_curves(
         smoothing=smoothing, max_iterations=max_iterations, callback=callback, interfaces=itf,
     )
     seconds["smoothing"] = time.perf_counter() - t
-    edges, tags, defects = _checked_boundary(domain, bnd, result)
+    result, edges, tags, defects = _checked_boundary(domain, bnd, result)
     lost = _lost_interfaces(result.triangles, result.interfaces)
     if lost.any():
         from .validate import _defect
