@@ -396,6 +396,26 @@ def test_fuzzed_regions_beside_a_wall_mesh(seed):
         assert abs(areas[k] - brep.area) <= 0.01 * brep.area + 0.05 * h_min * length
 
 
+def test_a_curve_turning_just_past_a_region_corner():
+    """``fuzz_csg.py`` seed 17540: a polyline in a disc three h across turns back 0.02 h past a
+    region's corner, which it passes within the junction merge distance.  It was made to pass
+    through the corner and kept its own turning point as well, two fixed nodes 0.0018 apart,
+    and the segment between them was lost (MeshError).  Its turning point is the corner now."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from fuzz_csg import draw
+
+    domain, regions, curves, size, _ = draw(17540)
+    mesh = injmesh.generate(domain, size, regions=regions, curves=curves)
+    assert mesh.stats.valid
+    corner = np.array([0.15049, 0.3144])
+    near = np.hypot(*(mesh.points - corner).T)
+    assert np.sort(near)[1] > 0.05 * 0.08  # one node at the corner, the next well away
+    assert len(mesh.curve_edges) and mesh.quality().min() > 0.3
+
+
 def test_pieces_leaving_a_wall_narrowly_project_off_it():
     """Points near the box's junction with the hole are projected onto the box's own side, not
     onto the hole, by the projection its piece carries; a piece leaving a wall at a wide angle

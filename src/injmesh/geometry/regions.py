@@ -942,7 +942,9 @@ def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
             continue
         mine = np.array(more)
         near = np.min(np.hypot(*(allx[:, None, :] - mine[None, :, :]).transpose(2, 0, 1)), axis=1) <= merge
-        out.append(_insert(p, allx[near], eps))
+        # A user curve's own fixed vertex that close to a junction is the junction (region
+        # boundaries are not bent: their vertices stay on their curves).
+        out.append(_insert(p, allx[near], eps, merge if p.owner < 0 else 0.0))
     return out
 
 
@@ -1071,13 +1073,30 @@ def _segments(p: Piece) -> tuple[FloatArray, FloatArray]:
     return p.points[:-1], p.points[1:]
 
 
-def _insert(p: Piece, q: FloatArray, eps: float) -> Piece:
-    """The piece with the points ``q`` (on it) inserted as fixed vertices."""
+def _insert(p: Piece, q: FloatArray, eps: float, snap: float = 0.0) -> Piece:
+    """The piece with the points ``q`` (on it) inserted as fixed vertices.
+
+    With ``snap``, a fixed vertex of the piece within ``snap`` of one of the points is moved
+    onto it instead: a user curve's turning point 0.02 h past a region's corner it was made to
+    pass through left two fixed nodes that close, and the curve's segment between them was
+    lost (found by fuzzing).
+    """
+    pts, fixed = p.points.copy(), p.fixed.copy()
+    if snap > 0.0 and fixed.any() and len(q):
+        from scipy.spatial import cKDTree
+
+        ids = np.flatnonzero(fixed)
+        dist, near = cKDTree(pts[ids]).query(q)
+        for j in np.argsort(dist, kind="stable").tolist():
+            v = ids[near[j]]
+            if 10 * eps < dist[j] <= snap and np.hypot(*(pts[v] - p.points[v])) == 0.0:
+                pts[v] = q[j]
+        p = Piece(pts, fixed, p.closed, p.project, p.owner)
+        pts = pts.copy()
     a, b = _segments(p)
     t, dist = _segment_feet(q, a, b)
     seg = np.argmin(dist, axis=1)
     tt = t[np.arange(len(q)), seg]
-    pts, fixed = p.points.copy(), p.fixed.copy()
     # A point at a vertex fixes the vertex; others are inserted in order along the piece.
     near_a = np.hypot(*(q - a[seg]).T) <= 10 * eps
     near_b = np.hypot(*(q - b[seg]).T) <= 10 * eps
