@@ -414,3 +414,25 @@ def test_a_triangle_cut_out_across_a_rectangle_leaving_a_slit():
     assert mesh.quality().min() > 0.5
     # Both parts, straight-sided: the triangles fill them exactly, nothing of the slit.
     assert float(mesh.areas().sum()) == pytest.approx(exact_boundary(domain).area, rel=1e-9)
+
+
+def test_a_polygon_corner_poking_out_of_a_circle_by_a_sliver():
+    """``fuzz_csg.py`` seed 21818: a quadrilateral minus a circle leaves an island 0.002 long
+    and 0.0002 wide where one corner pokes out of the circle.  Cleaning removed its short
+    piece and kept a segment and an arc whose moved ends sent the arc the long way round:
+    without regions a MeshError (boundary nodes at x = -0.55), with its region 70,843 nodes
+    and minutes of smoothing.  A loop left narrower than the tolerance is dropped now."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from fuzz_csg import draw
+
+    domain, regions, _, size, _ = draw(21818)
+    mesh = injmesh.generate(domain, size)
+    # The island (2e-7 of area) is dropped, and said so in the cleaning report.
+    assert mesh.stats.valid and mesh.stats.cleaning.get("dropped_loops") == 1
+    assert mesh.n_points < 500
+    with pytest.warns(UserWarning):
+        meshed = injmesh.generate(domain, size, regions=regions)
+    assert meshed.stats.valid and meshed.n_points < 2000
