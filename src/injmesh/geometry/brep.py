@@ -45,11 +45,11 @@ def _sliver_width(start: FloatArray, centre: FloatArray, sweep: FloatArray, arc_
         a0 = math.atan2(start[i, 1] - centre[i, 1], start[i, 0] - centre[i, 0])
         t = a0 + sweep[i] * np.arange(arc_steps) / arc_steps
         pts.append(centre[i] + r * np.stack([np.cos(t), np.sin(t)], axis=1))
+    from .primitives import _perimeter, _shoelace
+
     loop = np.concatenate(pts)
-    nxt = np.roll(loop, -1, axis=0)
-    area = 0.5 * abs(float(np.sum(loop[:, 0] * nxt[:, 1] - nxt[:, 0] * loop[:, 1])))
-    perimeter = float(np.sum(np.hypot(*(nxt - loop).T)))
-    return 2.0 * area / perimeter if perimeter > 0 else 0.0
+    perimeter = _perimeter(loop)
+    return 2.0 * abs(_shoelace(loop)) / perimeter if perimeter > 0 else 0.0
 
 
 class BRep(Domain):

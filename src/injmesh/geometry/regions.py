@@ -1145,13 +1145,12 @@ def _insert(p: Piece, q: FloatArray, eps: float, snap: float = 0.0) -> Piece:
 
         ids = np.flatnonzero(fixed)
         dist, near = cKDTree(pts[ids]).query(q)
-        for j in np.argsort(dist, kind="stable").tolist():
+        snapped = np.zeros(len(pts), dtype=bool)
+        for j in np.argsort(dist, kind="stable").tolist():  # each vertex to its nearest point
             v = ids[near[j]]
-            if 10 * eps < dist[j] <= snap and np.hypot(*(pts[v] - p.points[v])) == 0.0:
-                pts[v] = q[j]
-        p = Piece(pts, fixed, p.closed, p.project, p.owner)
-        pts = pts.copy()
-    a, b = _segments(p)
+            if 10 * eps < dist[j] <= snap and not snapped[v]:
+                pts[v], snapped[v] = q[j], True
+    a, b = _segments(Piece(pts, fixed, p.closed, p.project, p.owner))
     t, dist = _segment_feet(q, a, b)
     seg = np.argmin(dist, axis=1)
     tt = t[np.arange(len(q)), seg]
