@@ -420,6 +420,105 @@ def test_a_curve_turning_just_past_a_region_corner():
     assert len(mesh.curve_edges) and mesh.quality().min() > 0.3
 
 
+def test_a_curve_leg_crossing_a_side_beside_the_corner_the_curve_turns_at():
+    """``fuzz_csg.py`` seed 37020: a polyline turns at a region's corner after bending back at
+    4.5 degrees, and its first leg crosses the region's side 0.0019 (0.025 h) from that
+    corner.  The crossing was merged into the corner, which only the later leg passes through:
+    the first leg crossed the side with no node there (a lost segment, MeshError).  Both are
+    junctions now, each on its own leg."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from fuzz_csg import draw
+
+    domain, regions, curves, size, _ = draw(37020)
+    with pytest.warns(UserWarning, match="bends back on itself"):
+        mesh = injmesh.generate(domain, size, regions=regions, curves=curves)
+    assert mesh.stats.valid
+    corner, crossing = np.array([0.153736, 0.636953]), np.array([0.154276, 0.638784])
+    for x in (corner, crossing):
+        assert np.min(np.hypot(*(mesh.points - x).T)) < 1e-5
+    assert mesh.quality().min() > 0.1  # the 4.5-degree bend's bound is about 0.15
+
+
+def test_a_region_leaving_the_boundary_at_a_shallow_corner_of_it():
+    """``fuzz_csg.py`` seed 38304: a box region, one of the domain's operands, leaves the
+    boundary at a corner where another operand's side crosses the box's top at 14 degrees, a
+    turn below the domain's corner angle (no corner of the domain).  The boundary's gradient
+    there is the box top's, so the region's side was judged parallel to the wall, the tip's
+    radii never grew, and 64 nodes were laid at one point (63 lost segments).  The walls'
+    directions now come from where the boundary crosses a circle round the junction."""
+    import sys
+    from pathlib import Path
+
+    from injmesh.boundary import _junction_walls
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from fuzz_csg import draw
+
+    domain, regions, curves, size, _ = draw(38304)
+    tip = np.array([0.419981, 0.625])
+    walls = _junction_walls(domain, tip, np.array([0.0, 1.0]), 0.005)
+    angles = sorted(np.degrees(np.arctan2(walls[:, 1], walls[:, 0])).round(0) % 360)
+    assert angles == [14.0, 180.0]  # the other operand's side, and the box's top
+    mesh = injmesh.generate(domain, size, regions=regions)
+    assert mesh.stats.valid
+    assert len(np.unique(mesh.points.round(12), axis=0)) == len(mesh.points)
+    assert mesh.quality().min() > 0.35  # a 14-degree wedge at the junction
+    assert mesh.region_areas()[1] == pytest.approx(0.25 * 0.25, rel=0.01)
+
+
+def test_meeting_points_of_crossing_touching_and_overlapping_segments():
+    """Crossing segments meet at their crossing; collinear ones at the ends of their overlap
+    (one point where they only touch), never at a midpoint off either."""
+    from injmesh.geometry.regions import _meeting_points
+
+    p = np.array
+    eps = 1e-9
+    got = _meeting_points(p([0.0, 0.0]), p([1.0, 1.0]), p([0.0, 1.0]), p([1.0, 0.0]), eps)
+    assert np.allclose(got, [[0.5, 0.5]])
+    # Collinear, end to end: the shared end.
+    got = _meeting_points(p([0.5, 0.25]), p([0.5, 0.75]), p([0.5, 0.875]), p([0.5, 0.75]), eps)
+    assert np.allclose(got, [[0.5, 0.75]])
+    # Collinear, overlapping: both ends of the overlap.
+    got = _meeting_points(p([0.5, 0.25]), p([0.5, 0.75]), p([0.5, 0.875]), p([0.5, 0.5]), eps)
+    assert sorted(map(tuple, np.round(got, 12))) == [(0.5, 0.5), (0.5, 0.75)]
+    # An end on the other's side, at an angle: that end.
+    got = _meeting_points(p([0.0, 0.0]), p([1.0, 0.0]), p([0.5, 0.0]), p([0.5, 1.0]), eps)
+    assert np.allclose(got, [[0.5, 0.0]])
+
+
+@pytest.mark.parametrize("seed", [43239, 47752])
+def test_a_region_side_along_part_of_an_earlier_regions_side(seed):
+    """``fuzz_csg.py`` seeds 43239 and 47752: a box region's side runs along an earlier box
+    region's side for part of its length.  The earlier region's corner on it was not a vertex,
+    so the side was kept whole, lying on the other region's; the two collinear sides were
+    given a midpoint as their crossing, and the side doubled back (a duplicate node, lost
+    segments).  The corner is a junction now, and only the stretch off the earlier region is
+    an interface."""
+    import sys
+    from pathlib import Path
+
+    from injmesh.sizing.background import exact_boundary
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from fuzz_csg import draw
+
+    domain, regions, curves, size, _ = draw(seed)
+    mesh = injmesh.generate(domain, size, regions=regions, curves=curves or None)
+    assert mesh.stats.valid
+    assert mesh.quality().min() > 0.3
+    areas = mesh.region_areas()
+    assert areas.sum() == pytest.approx(exact_boundary(domain).area, rel=0.01)
+    # The boxes' areas, the later one without what the earlier one holds of it.
+    earlier = None
+    for k, region in enumerate(regions.values(), start=1):
+        part = region if earlier is None else region - earlier
+        assert areas[k] == pytest.approx(exact_boundary(part).area, rel=0.02)
+        earlier = region if earlier is None else earlier | region
+
+
 def test_pieces_leaving_a_wall_narrowly_project_off_it():
     """Points near the box's junction with the hole are projected onto the box's own side, not
     onto the hole, by the projection its piece carries; a piece leaving a wall at a wide angle

@@ -283,8 +283,11 @@ def _region_pieces(
     # joins it: vertices of the loop, so each edge is wholly on the boundary or off it.  (A
     # region's side from (0.875, 0.375) to (0.875, 0.875), on the boundary at both ends but not
     # in the middle, where another operand bulged out, was kept whole as an interface lying on
-    # the boundary: 17 lost segments, found by fuzzing.)
-    outer = domain.corners()
+    # the boundary: 17 lost segments, found by fuzzing.)  So are an earlier region's corners:
+    # a box's side along another box's for half its length was kept whole, lying on the other's
+    # side (a duplicate node and 17 lost segments, found by fuzzing).
+    outer = np.concatenate([np.asarray(w.corners(), dtype=np.float64).reshape(-1, 2)
+                            for w in (domain, *earlier.values())])
     if len(outer):
         outer = outer[np.abs(region.sdf(outer)) <= eps]
     if len(outer):
@@ -946,6 +949,35 @@ def _intersection(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray) ->
     return a + t * r
 
 
+def _meeting_points(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray, eps: float
+                    ) -> list[FloatArray]:
+    """Where segments a-b and c-d (which meet: :func:`_segment_hits`) meet: their crossing, or,
+    parallel or touching end to side, the ends of each within ``eps`` of the other (the ends
+    of their overlap).
+
+    A box region's side ending on another box's side, collinear with it, was given the other
+    side's midpoint as their crossing (the lines' crossing has no answer there), 0.25 off the
+    first side: inserted into it, the side doubled back (a duplicate node, 16 lost segments;
+    found by fuzzing).
+    """
+    x = _intersection(a, b, c, d)
+    r, s = b - a, d - c
+    if r[0] * s[1] - r[1] * s[0] != 0 and _to_segment(x, a, b) <= eps and _to_segment(x, c, d) <= eps:
+        return [x]
+    out: list[FloatArray] = []
+    for q, u, v in ((a, c, d), (b, c, d), (c, a, b), (d, a, b)):
+        if _to_segment(q, u, v) <= eps and all(np.hypot(*(q - o)) > eps for o in out):
+            out.append(q)
+    return out or [x]
+
+
+def _to_segment(q: FloatArray, a: FloatArray, b: FloatArray) -> float:
+    """The distance from the point q to the segment a-b."""
+    ab = b - a
+    t = min(max(float((q - a) @ ab) / max(float(ab @ ab), 1e-300), 0.0), 1.0)
+    return float(np.hypot(*(q - a - t * ab)))
+
+
 # --- junctions between pieces -----------------------------------------------------------------
 
 
@@ -972,27 +1004,28 @@ def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
             for s in range(0, len(ai), step):
                 hit = _segment_hits(ai[s:s + step], bi[s:s + step], aj, bj, eps)
                 for r, c in np.argwhere(hit).tolist():
-                    x = _intersection(ai[s + r], bi[s + r], aj[c], bj[c])
-                    at = fixed_pts[np.hypot(*(fixed_pts - x).T) <= 10 * eps]
-                    if len(at):
-                        # A piece ending there (a tangent region's junction put on the wall it
-                        # left, off its own curve): the crossing is that vertex, not where
-                        # alternating projections between the two curves drift to.
-                        x = at[0]
-                    else:
-                        for _ in range(CROSSING_ITERATIONS):
-                            x = pj.project(pi.project(x[None, :]))[0]
-                    extra[i].append(x)
-                    extra[j].append(x)
-                    crossings.append(x)
-                    # The segments of a user curve (a region's polyline only samples its curve:
-                    # two of its chords crossing the same curve near a contact are one place).
-                    tags.append((i, j, s + r if pi.owner < 0 else -1, c if pj.owner < 0 else -1))
+                    for x in _meeting_points(ai[s + r], bi[s + r], aj[c], bj[c], eps):
+                        at = fixed_pts[np.hypot(*(fixed_pts - x).T) <= 10 * eps]
+                        if len(at):
+                            # A piece ending there (a tangent region's junction put on the wall
+                            # it left, off its own curve): the crossing is that vertex, not
+                            # where alternating projections between the two curves drift to.
+                            x = at[0]
+                        else:
+                            for _ in range(CROSSING_ITERATIONS):
+                                x = pj.project(pi.project(x[None, :]))[0]
+                        extra[i].append(x)
+                        extra[j].append(x)
+                        crossings.append(x)
+                        # The segments of a user curve (a region's polyline only samples its
+                        # curve: two of its chords crossing the same curve near a contact are
+                        # one place).
+                        tags.append((i, j, s + r if pi.owner < 0 else -1, c if pj.owner < 0 else -1))
     # One list of junctions for every piece, so that pieces meeting there share the point; the
     # pieces' fixed vertices first, so that a crossing next to one becomes it.
     # (The near misses are fixed vertices, and the crossings are listed once: every point of
     # ``extra`` is among these.)
-    allx = _merged_junctions(fixed_pts, crossings, tags, merge, 10 * eps) if any(extra) else None
+    allx = _merged_junctions(fixed_pts, crossings, tags, merge, 10 * eps, pieces) if any(extra) else None
     out = []
     for p, more in zip(pieces, extra, strict=True):
         if not more or allx is None:
@@ -1007,15 +1040,20 @@ def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
 
 
 def _merged_junctions(fixed: FloatArray, crossings: list[FloatArray], tags: list[tuple[int, int, int, int]],
-                      merge: float, same: float) -> FloatArray:
+                      merge: float, same: float, pieces: list[Piece]) -> FloatArray:
     """The junction points: the fixed vertices, then the crossings, each dropped when closer
     than ``merge`` to an earlier one; except that two crossings of the same
     two pieces on different segments of a user curve (``tags``: the pieces, and the curves'
-    segments, -1 for a region's) more than ``same`` apart are both kept.
+    segments, -1 for a region's) more than ``same`` apart are both kept, and so are a crossing
+    and a fixed vertex more than ``same`` apart that lies on the crossing's user curve but off
+    the crossing's segment.
 
     A polyline bending back across a region's side crosses it twice, 0.0012 apart for h =
     0.09 (found by fuzzing): merged into one, the point went into one of the polyline's two
     segments only, and the other still crossed the side with no node there (a lost segment).
+    The same where the polyline's other leg passes through a corner of the region, 0.0019 from
+    the crossing (h = 0.075, found by fuzzing): the crossing became the corner, which only the
+    other leg has.
     """
     from scipy.spatial import cKDTree
 
@@ -1026,13 +1064,31 @@ def _merged_junctions(fixed: FloatArray, crossings: list[FloatArray], tags: list
     keep = np.ones(len(pts), dtype=bool)
     for a, b in sorted(map(tuple, cKDTree(pts).query_pairs(merge, output_type="ndarray").tolist())):
         ca, cb = a - first, b - first
+        apart = bool(np.hypot(*(pts[a] - pts[b])) > same)
         if 0 <= ca < len(tags) and 0 <= cb < len(tags):
             (i, j, si, sj), (i2, j2, si2, sj2) = tags[ca], tags[cb]
-            if (i, j) == (i2, j2) and (si, sj) != (si2, sj2) and np.hypot(*(pts[a] - pts[b])) > same:
+            if (i, j) == (i2, j2) and (si, sj) != (si2, sj2) and apart:
                 continue
+        elif apart and ca < 0 <= cb < len(tags) and _on_another_leg(pts[a], tags[cb], pieces, same):
+            continue
         keep[max(a, b)] = False
     out: FloatArray = pts[keep]
     return out
+
+
+def _on_another_leg(v: FloatArray, tag: tuple[int, int, int, int], pieces: list[Piece], same: float) -> bool:
+    """Whether the point ``v`` lies on a crossing's user curve (within ``same``) but not on the
+    crossing's own segment of it (``tag``: the pieces and the user curves' segments, as in
+    :func:`_merged_junctions`): there the curve passes ``v`` on another leg."""
+    for piece, s in ((pieces[tag[0]], tag[2]), (pieces[tag[1]], tag[3])):
+        if s < 0:
+            continue
+        a, b = _segments(piece)
+        _, _, d = _nearest_segment(v[None, :], a, b)
+        _, _, d_own = _nearest_segment(v[None, :], a[s:s + 1], b[s:s + 1])
+        if d[0] <= same < d_own[0]:
+            return True
+    return False
 
 
 def _near_misses(pieces: list[Piece], eps: float, merge: float) -> list[list[FloatArray]]:
@@ -1148,8 +1204,13 @@ def _insert(p: Piece, q: FloatArray, eps: float, snap: float = 0.0) -> Piece:
         snapped = np.zeros(len(pts), dtype=bool)
         for j in np.argsort(dist, kind="stable").tolist():  # each vertex to its nearest point
             v = ids[near[j]]
-            if 10 * eps < dist[j] <= snap and not snapped[v]:
-                pts[v], snapped[v] = q[j], True
+            if dist[j] <= snap and not snapped[v]:
+                # A vertex a point is at already stays there: another point near it is a
+                # junction of its own (a curve's other leg crossing a region's side 0.0019 from
+                # the region's corner the curve turns at; found by fuzzing).
+                if dist[j] > 10 * eps:
+                    pts[v] = q[j]
+                snapped[v] = True
     a, b = _segments(Piece(pts, fixed, p.closed, p.project, p.owner))
     t, dist = _segment_feet(q, a, b)
     seg = np.argmin(dist, axis=1)
