@@ -222,7 +222,7 @@ def test_a_crack_grazing_a_region_corner_goes_through_it(offset, h):
     """A crack drawn past a region's corner (offset > 0) or cutting it (< 0), 1e-4 to 1e-3 away:
     the corner and the crack's nearest node (or its two crossings) could not be resolved, and 4
     of these 8 lost a crack segment, the other 4 had q_min 0.002-0.06 (found by fuzzing).  The
-    crack now passes through the corner."""
+    crack now passes through the corner, and its nodes slide on the crack so bent."""
     box = Rectangle((0.3, 0.3), (0.6, 0.6))
     shift = offset * np.sqrt(2)
     crack = np.array([(0.4, 0.8 + shift), (0.8, 0.4 + shift)])
@@ -234,9 +234,14 @@ def test_a_crack_grazing_a_region_corner_goes_through_it(offset, h):
     edges = mesh.curve_edges[np.asarray(mesh.curve_names)[mesh.curve_tags] == "crack"]
     on_crack = np.unique(edges.ravel())
     assert np.hypot(*(p[on_crack] - (0.6, 0.6)).T).min() < 1e-12
-    # Every other crack node is on the drawn line.
+    # Every other crack node is on the crack bent through the corner (its two legs from the
+    # drawn ends to the corner), so off the drawn line by less than the offset.
     rest = on_crack[np.hypot(*(p[on_crack] - (0.6, 0.6)).T) > 1e-12]
-    assert np.abs(p[rest].sum(axis=1) - 1.2 - shift).max() < 1e-9
+    leg = np.where(p[rest, 0] < 0.6, 0, 1)
+    end = crack[leg]
+    cross = (p[rest, 0] - 0.6) * (end[:, 1] - 0.6) - (p[rest, 1] - 0.6) * (end[:, 0] - 0.6)
+    assert np.abs(cross / np.hypot(*(end - 0.6).T)).max() < 1e-9
+    assert np.abs(p[rest].sum(axis=1) - 1.2 - shift).max() <= abs(shift) * (1 + 1e-9)
 
 
 @pytest.mark.parametrize("h", [0.08, 0.05])
@@ -467,6 +472,36 @@ def test_a_region_leaving_the_boundary_at_a_shallow_corner_of_it():
     assert len(np.unique(mesh.points.round(12), axis=0)) == len(mesh.points)
     assert mesh.quality().min() > 0.35  # a 14-degree wedge at the junction
     assert mesh.region_areas()[1] == pytest.approx(0.25 * 0.25, rel=0.01)
+
+
+def test_a_curve_bent_through_a_region_corner_slides_on_the_bent_polyline():
+    """``fuzz_csg.py`` seed 43526: a polyline passes a triangle region's corner h/24 off and
+    ends 1/3 h beyond it.  It is bent through the corner (a near miss), but its nodes slid on
+    the polyline as drawn: those beside the corner crossed the region's side (a lost segment,
+    MeshError).  They slide on the bent polyline now."""
+    import sys
+    from pathlib import Path
+
+    from injmesh.geometry.regions import build_constraints
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from fuzz_csg import draw
+
+    domain, regions, curves, size, _ = draw(43526)
+    corner = np.array([0.20833193808049144, 0.31692430496457247])
+    cons = build_constraints(domain, regions, curves, size)
+    curve = next(p for p in cons.pieces if p.owner < 0)
+    assert np.min(np.hypot(*(curve.points - corner).T)) < 1e-12  # bent through the corner
+    # A point beside the corner, on the drawn line, goes onto the bent polyline.
+    drawn = np.array(next(iter(curves.values())), dtype=float)
+    q = drawn[0] + 0.8 * (drawn[1] - drawn[0])
+    foot = curve.project(q[None, :])[0]
+    a, b = curve.points[:-1], curve.points[1:]
+    t = np.clip(np.einsum("ij,ij->i", foot - a, b - a) / np.einsum("ij,ij->i", b - a, b - a), 0, 1)
+    assert np.min(np.hypot(*(a + t[:, None] * (b - a) - foot).T)) < 1e-12
+    mesh = injmesh.generate(domain, size, regions=regions, curves=curves)
+    assert mesh.stats.valid
+    assert mesh.quality().min() > 0.6
 
 
 def test_meeting_points_of_crossing_touching_and_overlapping_segments():

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -752,10 +752,6 @@ def _curve_piece(domain: Domain, name: str, line: FloatArray, c: int, h_min: flo
     line = _through_corners(domain, line, closed, eps, max(10 * eps, JUNCTION_MERGE * h_min))
     _check_inside(domain, name, line, closed, h_min, eps)
     _check_simple(name, line, closed, eps)
-    # The projector: an exact boundary representation of the polyline (open: there and back).
-    loop = line if closed else np.concatenate([line, line[-2:0:-1]])
-    b = BRep(loop, np.roll(loop, -1, axis=0), np.zeros_like(loop), np.zeros(len(loop)),
-             np.array([0, len(loop)]))
     fixed = np.zeros(len(line), dtype=bool)
     if not closed:
         fixed[[0, -1]] = True
@@ -770,7 +766,16 @@ def _curve_piece(domain: Domain, name: str, line: FloatArray, c: int, h_min: flo
     fixed |= bend
     # A vertex on the outer boundary is a junction with it.
     fixed |= np.abs(domain.sdf(line)) <= eps
-    return Piece(line, fixed, closed, b.project, -1 - c)
+    return Piece(line, fixed, closed, _polyline_projection(line, closed), -1 - c)
+
+
+def _polyline_projection(line: FloatArray, closed: bool) -> Projector:
+    """The nearest point on a user curve's polyline: an exact boundary representation of it
+    (an open one there and back)."""
+    loop = line if closed else np.concatenate([line, line[-2:0:-1]])
+    b = BRep(loop, np.roll(loop, -1, axis=0), np.zeros_like(loop), np.zeros(len(loop)),
+             np.array([0, len(loop)]))
+    return b.project
 
 
 def _through_corners(domain: Domain, line: FloatArray, closed: bool, eps: float, merge: float
@@ -1035,7 +1040,15 @@ def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
         near = np.min(np.hypot(*(allx[:, None, :] - mine[None, :, :]).transpose(2, 0, 1)), axis=1) <= merge
         # A user curve's own fixed vertex that close to a junction is the junction (region
         # boundaries are not bent: their vertices stay on their curves).
-        out.append(_insert(p, allx[near], eps, merge if p.owner < 0 else 0.0))
+        joined = _insert(p, allx[near], eps, merge if p.owner < 0 else 0.0)
+        drawn = p.points if p.closed else np.concatenate([p.points, p.points[-2:0:-1]])
+        if p.owner < 0 and np.any(_polyline_distance(joined.points, drawn) > 10 * eps):
+            # Bent through a junction off it (a near miss, a snapped vertex), the curve's nodes
+            # slide on the bent polyline: on the one drawn, those beside a region's corner the
+            # curve was bent through (h / 24 off it) crossed the region's side (a lost segment,
+            # found by fuzzing).
+            joined = replace(joined, project=_polyline_projection(joined.points, joined.closed))
+        out.append(joined)
     return out
 
 
