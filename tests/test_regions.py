@@ -504,6 +504,61 @@ def test_a_curve_bent_through_a_region_corner_slides_on_the_bent_polyline():
     assert mesh.quality().min() > 0.6
 
 
+@pytest.mark.parametrize("seed", [51968, 52239, 54830])
+def test_a_region_corner_moved_onto_a_wall_keeps_its_nodes_off_where_it_was(seed):
+    """``fuzz_csg.py`` seeds 51968, 52239, 54830: a box region's corner h/25-h/20 from the
+    boundary (within the merge band) is moved onto it, but the region's own projection still
+    had the corner where it was: nodes beside it went back there, and the interface ran from
+    the old corner to the new and back (lost segments, MeshError).  The sides now run to the
+    moved corner from CORNER_REACH merge distances away, and the pieces project there onto
+    those two segments."""
+    import sys
+    from pathlib import Path
+
+    from injmesh.sizing.background import exact_boundary
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from fuzz_csg import draw
+
+    domain, regions, curves, size, _ = draw(seed)
+    mesh = injmesh.generate(domain, size, regions=regions, curves=curves or None)
+    assert mesh.stats.valid
+    assert mesh.quality().min() > 0.3
+    areas = mesh.region_areas()
+    assert areas.sum() == pytest.approx(exact_boundary(domain).area, rel=0.01)
+    # Some interface node is on the boundary: the moved corner.
+    iface = np.unique(mesh.curve_edges.ravel())
+    assert np.min(np.abs(domain.sdf(mesh.points[iface]))) < 1e-9
+
+
+def test_moved_corner_projection_is_continuous():
+    """Along a box's side through the reach of its moved corner, the pieces' projection moves
+    continuously (no jump where it hands over to the region's own), onto the slanted
+    segment inside the reach and onto the side outside it; a point off the side by d jumps
+    by at most d sin(slant) there."""
+    from injmesh.geometry.regions import _MovedCorner, _MovedCorners
+
+    box = Rectangle((0.375, 0.25), (0.5, 0.375))
+    was = np.array([0.375, 0.25])
+    now = np.array([0.3741, 0.2481])
+    reach = 0.008
+    c = _MovedCorner(was, now, was + (0.0, reach), was + (reach, 0.0), reach, SQUARE)
+    project = _MovedCorners(box.project, [c])
+    t = np.linspace(0.0, 3 * reach, 3001)
+    beside = project(np.c_[np.full_like(t, 0.375) - 1e-3, 0.25 + t])  # 1e-3 off the left side
+    slant = np.arctan2(0.375 - now[0], reach + 0.25 - now[1])
+    assert np.max(np.hypot(*np.diff(beside, axis=0).T)) < 2 * (t[1] - t[0]) + 1e-3 * np.sin(slant)
+    out = project(np.c_[np.full_like(t, 0.375), 0.25 + t])  # on it
+    assert np.max(np.hypot(*np.diff(out, axis=0).T)) < 2 * (t[1] - t[0])
+    inside = t < reach
+    # Inside the reach on the segment from the moved corner to the side vertex ...
+    a, b = now, was + (0.0, reach)
+    cross = (out[inside, 0] - a[0]) * (b[1] - a[1]) - (out[inside, 1] - a[1]) * (b[0] - a[0])
+    assert np.abs(cross).max() < 1e-12
+    # ... and on the side outside it.
+    assert np.allclose(out[~inside, 0], 0.375)
+
+
 def test_meeting_points_of_crossing_touching_and_overlapping_segments():
     """Crossing segments meet at their crossing; collinear ones at the ends of their overlap
     (one point where they only touch), never at a midpoint off either."""

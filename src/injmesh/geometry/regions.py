@@ -300,9 +300,9 @@ def _region_pieces(
     for wall in walls:
         loops = [_tangent_exits(wall, region, _touch_points(wall, region, lp, h_min, merge, eps), merge, eps)
                  for lp in loops]
-    loops, touching = _corners_onto_walls(loops, corners, walls, merge, eps)
-    if len(touching):
-        corners = np.concatenate([corners.reshape(-1, 2), touching])
+    loops, moved_corners = _corners_onto_walls(loops, corners, walls, merge, eps)
+    if moved_corners:
+        corners = np.concatenate([corners.reshape(-1, 2), *(c.now[None, :] for c in moved_corners)])
     pieces = []
     for loop in loops:
         nxt = np.roll(loop, -1, axis=0)
@@ -361,7 +361,7 @@ def _region_pieces(
             dist, _ = cKDTree(corners).query(loop)
             fixed = dist <= eps
         if not drop.any():
-            pieces.append(Piece(loop, fixed, True, region.project, k))
+            pieces.append(Piece(loop, fixed, True, _with_moved(region.project, loop, moved_corners, eps), k))
             continue
         # Runs of kept edges, each from a vertex after a dropped edge to one before the next.
         start = int(np.argmax(drop)) + 1
@@ -418,34 +418,38 @@ def _region_pieces(
                                                  max(10 * eps, 0.01 * merge))
             else:
                 project = region.project
-            pieces.append(Piece(pts, f, False, project, k))
+            pieces.append(Piece(pts, f, False, _with_moved(project, pts, moved_corners, eps), k))
             run = end
     return pieces
 
 
 def _corners_onto_walls(loops: list[FloatArray], corners: FloatArray, walls: list[Domain], merge: float,
-                        eps: float) -> tuple[list[FloatArray], FloatArray]:
+                        eps: float) -> tuple[list[FloatArray], list[_MovedCorner]]:
     """The loops with each of the region's corners that lies within ``merge`` of a wall, but
-    not on it, moved onto the wall, and where they went.
+    not on it, moved onto the wall, and the corners so moved.
 
     No element resolves a gap that narrow: a box's corner 7e-5 inside a circular part of the
     boundary (0.002 h) was a node 7e-5 from the boundary's, and the triangle between them had
     no area (found by fuzzing).  The corner touches the wall now, a junction on it.  (Edges
     running along a wall within the band are merged into it by :func:`_region_pieces`; this
-    takes the corners whose edges leave it.)
+    takes the corners whose edges leave it.)  The loop gets a vertex on each of the corner's
+    sides ``CORNER_REACH * merge`` from it (or halfway to the next vertex), where it runs
+    from the side to the moved corner: the rest of the loop is the region's boundary still
+    (:class:`_MovedCorners`).
     """
     corners = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
     if not len(corners):
-        return loops, np.empty((0, 2))
+        return loops, []
     from scipy.spatial import cKDTree
 
     tree = cKDTree(corners)
-    moved: list[FloatArray] = []
+    records: list[_MovedCorner] = []
     out = []
     for lp in loops:
         lp = np.array(lp, dtype=np.float64)
         at_corner = tree.query(lp)[0] <= eps
-        for wall in walls:
+        onto = np.full(len(lp), -1)
+        for w, wall in enumerate(walls):
             if not at_corner.any():
                 break
             idx = np.flatnonzero(at_corner)
@@ -457,11 +461,78 @@ def _corners_onto_walls(loops: list[FloatArray], corners: FloatArray, walls: lis
                 far = np.abs(wall.sdf(np.concatenate([lp[(near - 1) % len(lp)], lp[(near + 1) % len(lp)]])))
                 near = near[(far[:len(near)] > merge) & (far[len(near):] > merge)]
             if len(near):
-                lp[near] = wall.project(lp[near])
-                moved.append(lp[near])
+                onto[near] = w
                 at_corner[near] = False
-        out.append(lp)
-    return out, (np.concatenate(moved) if moved else np.empty((0, 2)))
+        rows: list[FloatArray] = []
+        for i in range(len(lp)):
+            if onto[i] < 0:
+                rows.append(lp[i:i + 1])
+                continue
+            c, a, b = lp[i], lp[i - 1], lp[(i + 1) % len(lp)]
+            reach = min(CORNER_REACH * merge, 0.5 * float(np.hypot(*(a - c))),
+                        0.5 * float(np.hypot(*(b - c))))
+            before = c + reach * (a - c) / np.hypot(*(a - c))
+            after = c + reach * (b - c) / np.hypot(*(b - c))
+            moved = walls[int(onto[i])].project(c[None, :])[0]
+            records.append(_MovedCorner(c.copy(), moved, before, after, reach, walls[int(onto[i])]))
+            rows.append(np.stack([before, moved, after]))
+        out.append(np.concatenate(rows) if rows else lp)
+    return out, records
+
+
+#: :func:`_corners_onto_walls`: a moved corner's sides run to it from this many merge
+#: distances away (a slant of at most atan(1 / CORNER_REACH), 14 degrees).
+CORNER_REACH = 4.0
+
+
+@dataclass(frozen=True)
+class _MovedCorner:
+    """A region's corner moved onto a wall (:func:`_corners_onto_walls`): where it was, where
+    it is, the loop's vertices ``reach`` from it on its two sides, and the wall."""
+
+    was: FloatArray
+    now: FloatArray
+    before: FloatArray
+    after: FloatArray
+    reach: float
+    wall: Domain
+
+
+class _MovedCorners:
+    """A region's projection with its corners moved onto walls: a point the region projects
+    within a corner's reach of where the corner was goes to the nearest point of the two
+    segments from the corner's side vertices to where it is now.
+
+    The region's own projection still has the corner where it was: points beside the moved
+    corner went back to it, up to the merge band off the wall, and the piece ran from the old
+    corner to the new and back (a box's corner h/25 inside a circle: lost segments, found by
+    fuzzing).  At the reach the two agree (the side vertices are the region's boundary there),
+    so the projection stays continuous.  Pieces that use it are projected in Python in the
+    smoothing, not in its compiled steps; they are rare.
+    """
+
+    def __init__(self, project: Projector, corners: list[_MovedCorner]) -> None:
+        self.project, self.corners = project, corners
+
+    def __call__(self, q: FloatArray) -> FloatArray:
+        out = np.array(self.project(q), dtype=np.float64)
+        q = np.asarray(q, dtype=np.float64)
+        for c in self.corners:
+            near = np.flatnonzero(np.hypot(*(out - c.was).T) < c.reach)
+            if not len(near):
+                continue
+            a = np.stack([c.before, c.now])
+            b = np.stack([c.now, c.after])
+            s2, t2, _ = _nearest_segment(q[near], a, b)
+            out[near] = a[s2] + t2[:, None] * (b[s2] - a[s2])
+        return out
+
+
+def _with_moved(project: Projector, pts: FloatArray, corners: list[_MovedCorner], eps: float) -> Projector:
+    """``project``, through :class:`_MovedCorners` for the moved corners that are vertices of
+    the piece ``pts``."""
+    mine = [c for c in corners if np.min(np.hypot(*(pts - c.now).T)) <= eps]
+    return _MovedCorners(project, mine) if mine else project
 
 
 #: A region's piece that leaves a wall (the boundary, an earlier region) at less than this many
