@@ -436,3 +436,23 @@ def test_a_polygon_corner_poking_out_of_a_circle_by_a_sliver():
     with pytest.warns(UserWarning):
         meshed = injmesh.generate(domain, size, regions=regions)
     assert meshed.stats.valid and meshed.n_points < 2000
+
+
+def test_a_boundary_node_does_not_cross_a_gap_to_another_loop():
+    """``fuzz_csg.py`` seed 74352: a triangle's tip lies h/6 outside a circle (two loops), and
+    the quality pass moved a circle node, projected onto the nearest boundary point, to the
+    triangle's tip, where the triangle had its own node (a duplicate node, MeshError).  A
+    boundary node's trial whose midpoint lies outside the domain by more than a quarter of its
+    length crossed a gap, and is refused."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from fuzz_csg import draw
+
+    domain, _, _, size, _ = draw(74352)
+    mesh = injmesh.generate(domain, size)
+    assert_valid_mesh(mesh, domain)
+    assert len(np.unique(mesh.points.round(12), axis=0)) == len(mesh.points)
+    tip = np.array([0.61143883, 0.50769703])
+    assert np.sum(np.hypot(*(mesh.points - tip).T) < 1e-6) == 1

@@ -197,6 +197,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from . import _tolerances as tol
 from .geometry import Domain
 from .progress import Callback, report
 from .quality import triangle_quality
@@ -2152,7 +2153,7 @@ def _line_search(domain: Domain, p: FloatArray, t64: NDArray[np.int64], start: N
     """One sweep's trials of :func:`_optimize` through the domain's and projector's methods
     (``kernels.smooth.optimize_trials`` makes them on a compiled boundary); the moves are
     taken in ``p``.  Returns which nodes of ``move`` moved."""
-    from .kernels.smooth import star_trial
+    from .kernels.smooth import ACROSS, star_trial
 
     # The depth of the free nodes, once per sweep: a trial step shorter than it (half of
     # it for a d that is not an exact distance) stays inside without asking the domain,
@@ -2167,6 +2168,16 @@ def _line_search(domain: Domain, p: FloatArray, t64: NDArray[np.int64], start: N
         if on_bnd.any():
             step[on_bnd] = (domain.project(step[on_bnd]) if project is None
                             else project(step[on_bnd], move[on_bnd]))
+            # A move across a gap to another stretch of the boundary is refused, as the
+            # compiled trials refuse it (kernels.smooth._keep_off_gaps); curve nodes (inside)
+            # are not asked.
+            b = np.flatnonzero(on_bnd)
+            b = b[np.abs(domain.sdf(step[b])) <= tol.ON_BOUNDARY * domain.diameter]
+            if len(b):
+                mid = 0.5 * (p[move[b]] + step[b])
+                scale = np.maximum(1.0, np.abs(p[move[b]]).max(axis=1))
+                across = domain.sdf(mid) > ACROSS * np.hypot(*(step[b] - p[move[b]]).T) + 1e-12 * scale
+                step[b[across]] = p[move[b[across]]]
         inside = np.hypot(*(step - p[move]).T) < depth
         ask = np.flatnonzero(~inside & ~on_bnd & ~done)
         if len(ask):

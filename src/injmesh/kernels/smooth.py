@@ -1283,6 +1283,52 @@ def resize(values, b, rows, ld, ld_prev, ld_next, p, nodes, near, indptr, adj, e
         anchor[i, 0], anchor[i, 1] = p[i, 0], p[i, 1]
 
 
+#: A boundary node's trial move in the quality pass whose midpoint lies outside the domain by
+#: more than this fraction of the move's length is refused (:func:`_keep_off_gaps`).
+ACROSS = 0.25
+
+
+@njit(cache=True)
+def _keep_off_gaps(p, move, step, bnd_rows, bnd_target, kinds, shapes, origins, cat, offs):  # type: ignore[no-untyped-def]
+    """Put back the trial of each node on the domain's boundary (``bnd_target`` 0) whose move
+    crosses outside the domain: its midpoint more than ``ACROSS`` of its length outside.
+
+    Projected onto the nearest boundary point, a node beside a gap narrower than the
+    allowance for its boundary's curvature went to the other side of it: a circle's node
+    0.0155 (h/6) from the tip of a separate triangle became a second node at the tip (a
+    duplicate node; ``fuzz_csg.py`` seed 74352).  A move along the boundary has its midpoint
+    inside, or outside by a concave arc's sagitta, ``m**2 / (8 R)`` (a quarter of m when m is
+    2 R); across a gap, by about half of it.  The trial is then the node's own position, which
+    :func:`star_trial` refuses.
+    """
+    n_dom = 0
+    for k in range(bnd_rows.shape[0]):
+        if bnd_target[k] == 0:
+            n_dom += 1
+    if n_dom == 0:
+        return
+    mid = np.empty((n_dom, 2))
+    rows = np.empty(n_dom, dtype=np.int64)
+    j = 0
+    for k in range(bnd_rows.shape[0]):
+        if bnd_target[k] == 0:
+            a = bnd_rows[k]
+            i = move[a]
+            mid[j, 0] = 0.5 * (p[i, 0] + step[a, 0])
+            mid[j, 1] = 0.5 * (p[i, 1] + step[a, 1])
+            rows[j] = a
+            j += 1
+    d = _query_of(mid, kinds, shapes, origins, cat, offs, _DOMAIN_BOUNDARY, np.empty((0, 2)))
+    for j in range(n_dom):
+        a = rows[j]
+        i = move[a]
+        moved = math.hypot(step[a, 0] - p[i, 0], step[a, 1] - p[i, 1])
+        # (Rounding in d: a move of a few ulps along the boundary is no crossing.)
+        scale = max(1.0, abs(p[i, 0]), abs(p[i, 1]))
+        if d[j] > ACROSS * moved + 1e-12 * scale:
+            step[a, 0], step[a, 1] = p[i, 0], p[i, 1]
+
+
 @njit(cache=True)
 def optimize_trials(p, tri, start, corner, move, target, star, prev_b, next_b, on_bnd, reach,  # type: ignore[no-untyped-def]
                     bnd_target, kinds, shapes, origins, cat, offs):
@@ -1329,6 +1375,7 @@ def optimize_trials(p, tri, start, corner, move, target, star, prev_b, next_b, o
             project_rows(bnd_target, kinds, shapes, origins, cat, offs, bq, bf)
             for k in range(n_bnd):
                 step[bnd_rows[k], 0], step[bnd_rows[k], 1] = bf[k, 0], bf[k, 1]
+            _keep_off_gaps(p, move, step, bnd_rows, bnd_target, kinds, shapes, origins, cat, offs)
         n_ask = 0
         for a in range(m):
             i = move[a]
