@@ -559,6 +559,21 @@ def test_moved_corner_projection_is_continuous():
     assert np.allclose(out[~inside, 0], 0.375)
 
 
+def test_a_ring_whose_end_misses_its_start_is_closed():
+    """A digitised ring whose last point misses its first by 2e-4 (h/200): kept open, its two
+    end nodes that close made a triangle of q 0.006.  It is closed there, with a warning, and
+    every segment of the ring is a mesh edge."""
+    t = np.linspace(0.0, 2.0 * np.pi, 40)
+    ring = np.c_[0.5 + 0.25 * np.cos(t), 0.5 + 0.25 * np.sin(t)]
+    ring[-1] += (1e-4, 2e-4)
+    with pytest.warns(UserWarning, match="curve 'ring' ends 0.000224 from where it starts"):
+        mesh = injmesh.generate(SQUARE, 0.05, curves={"ring": ring})
+    assert_valid_mesh(mesh, SQUARE)
+    assert mesh.quality().min() > 0.7
+    # A closed curve: every node of it has two curve edges.
+    assert np.all(np.bincount(mesh.curve_edges.ravel())[np.unique(mesh.curve_edges)] == 2)
+
+
 def test_meeting_points_of_crossing_touching_and_overlapping_segments():
     """Crossing segments meet at their crossing; collinear ones at the ends of their overlap
     (one point where they only touch), never at a midpoint off either."""

@@ -818,6 +818,17 @@ def _check_overlaps(names: list[str], doms: list[Domain], h_min: float, eps: flo
 def _curve_piece(domain: Domain, name: str, line: FloatArray, c: int, h_min: float, eps: float
                  ) -> Piece:
     closed = len(line) > 3 and bool(np.all(line[0] == line[-1]))
+    gap = float(np.hypot(*(line[-1] - line[0])))
+    if not closed and len(line) > 3 and gap <= max(10 * eps, JUNCTION_MERGE * h_min):
+        # Ends closer than junctions are told apart: the curve is closed (a digitised ring
+        # whose last point misses its first).  Kept open, its two end nodes 0.02 h apart made a
+        # triangle of no area (found by fuzzing).
+        import warnings
+
+        warnings.warn(f"curve {name!r} ends {gap:.3g} from where it starts ({line[0, 0]:.6g}, "
+                      f"{line[0, 1]:.6g}), closer than elements resolve: it is closed there",
+                      stacklevel=4)
+        closed = True
     if closed:
         line = line[:-1]
     line = _through_corners(domain, line, closed, eps, max(10 * eps, JUNCTION_MERGE * h_min))
