@@ -574,6 +574,26 @@ def test_a_ring_whose_end_misses_its_start_is_closed():
     assert np.all(np.bincount(mesh.curve_edges.ravel())[np.unique(mesh.curve_edges)] == 2)
 
 
+def test_a_curve_through_a_reflex_corner_between_its_vertices():
+    """``fuzz_csg.py`` seed 69741: a polyline passes 1e-5 (h/5000) off a reflex corner of the
+    boundary, between two of its vertices.  Within eps of the polyline, the corner counted as
+    on it and was not inserted: no node there, and the segment across the corner was lost
+    (MeshError).  It is a junction now."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from fuzz_csg import draw
+
+    domain, regions, curves, size, _ = draw(69741)
+    mesh = injmesh.generate(domain, size, regions=regions, curves=curves)
+    assert mesh.stats.valid
+    assert mesh.quality().min() > 0.5
+    corner = np.array([0.75, 0.75])
+    at = np.flatnonzero(np.hypot(*(mesh.points - corner).T) < 1e-12)
+    assert len(at) == 1 and np.isin(at[0], mesh.curve_edges)
+
+
 def test_meeting_points_of_crossing_touching_and_overlapping_segments():
     """Crossing segments meet at their crossing; collinear ones at the ends of their overlap
     (one point where they only touch), never at a midpoint off either."""

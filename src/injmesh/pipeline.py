@@ -164,7 +164,8 @@ def generate(
         k: the k-th region), ``mesh.region_names`` their names.
     curves : mapping name -> (k, 2) array_like, or a sequence of them, optional
         Injection only.  Polylines inside the domain that must be mesh edges (interfaces,
-        cracks, faults); a polyline whose last point is its first is closed.  End points,
+        cracks, faults); a polyline whose last point is its first (or misses it by less
+        than ``h_min / 20``, with a warning) is closed.  End points,
         vertices where a polyline turns and crossings are fixed nodes.  ``mesh.curve_edges``
         holds every interior constraint edge, ``mesh.curve_tags`` its curve, indexing
         ``mesh.curve_names`` (the curves, then the interfaces between regions).

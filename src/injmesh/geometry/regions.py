@@ -162,7 +162,8 @@ def build_constraints(
         Sub-regions; a plain callable uses the domain's bbox.
     curves : mapping name -> (k, 2) array_like, or a sequence of them, optional
         Polylines; a sequence names them ``"curve 1"``, ``"curve 2"``, ...  A polyline whose
-        last point equals its first is closed.
+        last point equals its first, or misses it by less than ``JUNCTION_MERGE * h_min``
+        (with a warning), is closed.
     h_min : float
         Smallest target size: the resolution of traced region boundaries.
 
@@ -863,8 +864,8 @@ def _polyline_projection(line: FloatArray, closed: bool) -> Projector:
 def _through_corners(domain: Domain, line: FloatArray, closed: bool, eps: float, merge: float
                      ) -> FloatArray:
     """The polyline made to pass through the domain's corners within ``merge`` of it (and not
-    on it): its vertex nearest such a corner moves onto it when that close, else the corner is
-    inserted as a vertex.  The curve moves by less than ``merge``.
+    a vertex of it): its vertex nearest such a corner moves onto it when that close, else the
+    corner is inserted as a vertex.  The curve moves by less than ``merge``.
 
     A fault drawn past a corner of the boundary closer than any element could resolve cuts off
     a sliver no triangle fits: past a reflex corner at h/30 it even left the domain over a
@@ -872,6 +873,8 @@ def _through_corners(domain: Domain, line: FloatArray, closed: bool, eps: float,
     corner were lost (found by fuzzing).  Through the corner it meets the boundary there, a
     junction.  As for a region's corner near a curve (:func:`_near_misses`).
     """
+    from scipy.spatial import cKDTree
+
     corners = domain.corners()
     lo, hi = line.min(axis=0) - merge, line.max(axis=0) + merge
     corners = corners[np.all((corners >= lo) & (corners <= hi), axis=1)]
@@ -884,7 +887,10 @@ def _through_corners(domain: Domain, line: FloatArray, closed: bool, eps: float,
     if not len(a):
         return line
     seg, tt, d = _nearest_segment(corners, a, b)
-    near = (d > eps) & (d <= merge)
+    # A corner the polyline passes within eps of, between its vertices, is a junction too (a
+    # fault through a reflex corner 1e-5 off it had no node there, and its segment across
+    # the corner was lost; found by fuzzing).
+    near = (d <= merge) & (cKDTree(line).query(corners)[0] > eps)
     if not near.any():
         return line
     out = line.copy()
