@@ -48,6 +48,8 @@ Two bar forces are used, in this order (``smoothing="hybrid"``, the default):
    stars; targets, trials and star updates are compiled (``kernels.smooth.star_targets``,
    ``star_trial``, ``restar``), the domain is asked once per trial length; on a compiled
    boundary a sweep's whole line search is one call (``optimize_trials``, the same numbers).
+   A sliding node's trial whose midpoint lies outside the domain by more than ``ACROSS`` of
+   the move crossed a gap to another stretch of boundary, and is refused.
 
 ``smoothing="attractive"`` runs the paper's force alone to its convergence, to reproduce the
 paper as printed.

@@ -19,11 +19,16 @@ boundary or to an earlier region (a *wall*) follows the wall where it runs withi
 cusps beside the contact, which no triangle fills, are bridged.  A piece that leaves a wall at
 less than ``WALL_ANGLE`` degrees, or ends within the band, projects onto itself, never onto
 the wall beside the junction (:class:`_OffTheWall`); an end put on a wall within
-``BOUNDARY_MERGE * h_min`` of one of its corners is that corner.  A user curve passing a fixed
-vertex (a region's corner, a corner of the boundary) within ``JUNCTION_MERGE * h_min`` is made
-to pass through it.  Inputs are checked here, once: a region that leaves the
-domain, two regions that overlap, a curve that leaves the domain or crosses itself each raise
-:class:`RegionError` or :class:`CurveError` naming the region or curve and a point.
+``BOUNDARY_MERGE * h_min`` of one of its corners is that corner.  A region's corner within the
+band of a wall is moved onto it, its sides running to it from ``CORNER_REACH`` band widths
+away, and its pieces project onto those two segments there (:class:`_MovedCorners`).  The
+corners of the domain and of earlier regions on a region's boundary are vertices of it.  A user
+curve passing a fixed vertex (a region's corner, a corner of the boundary) within
+``JUNCTION_MERGE * h_min`` is made to pass through it, and then slides on the polyline so bent;
+one whose end misses its start by that little is closed.  Inputs are checked here, once: a
+region that leaves the domain, two regions that overlap, a curve that leaves the domain or
+crosses itself each raise :class:`RegionError` or :class:`CurveError` naming the region or
+curve and a point.
 """
 
 from __future__ import annotations
