@@ -506,14 +506,9 @@ def test_a_curve_bent_through_a_region_corner_slides_on_the_bent_polyline():
     assert mesh.quality().min() > 0.6
 
 
-@pytest.mark.parametrize("seed", [51968, 52239, 54830])
-def test_a_region_corner_moved_onto_a_wall_keeps_its_nodes_off_where_it_was(seed):
-    """``fuzz_csg.py`` seeds 51968, 52239, 54830: a box region's corner h/25-h/20 from the
-    boundary (within the merge band) is moved onto it, but the region's own projection still
-    had the corner where it was: nodes beside it went back there, and the interface ran from
-    the old corner to the new and back (lost segments, MeshError).  The sides now run to the
-    moved corner from CORNER_REACH merge distances away, and the pieces project there onto
-    those two segments."""
+def _fuzzed_mesh(seed):
+    """``fuzz_csg.py``'s input ``seed`` meshed: valid, q_min above 0.3, the regions' areas
+    adding up to the domain's.  Returns the domain, the regions and the mesh."""
     import sys
     from pathlib import Path
 
@@ -526,8 +521,19 @@ def test_a_region_corner_moved_onto_a_wall_keeps_its_nodes_off_where_it_was(seed
     mesh = injmesh.generate(domain, size, regions=regions, curves=curves or None)
     assert mesh.stats.valid
     assert mesh.quality().min() > 0.3
-    areas = mesh.region_areas()
-    assert areas.sum() == pytest.approx(exact_boundary(domain).area, rel=0.01)
+    assert mesh.region_areas().sum() == pytest.approx(exact_boundary(domain).area, rel=0.01)
+    return domain, regions, mesh
+
+
+@pytest.mark.parametrize("seed", [51968, 52239, 54830])
+def test_a_region_corner_moved_onto_a_wall_keeps_its_nodes_off_where_it_was(seed):
+    """``fuzz_csg.py`` seeds 51968, 52239, 54830: a box region's corner h/25-h/20 from the
+    boundary (within the merge band) is moved onto it, but the region's own projection still
+    had the corner where it was: nodes beside it went back there, and the interface ran from
+    the old corner to the new and back (lost segments, MeshError).  The sides now run to the
+    moved corner from CORNER_REACH merge distances away, and the pieces project there onto
+    those two segments."""
+    domain, _, mesh = _fuzzed_mesh(seed)
     # Some interface node is on the boundary: the moved corner.
     iface = np.unique(mesh.curve_edges.ravel())
     assert np.min(np.abs(domain.sdf(mesh.points[iface]))) < 1e-9
@@ -624,20 +630,10 @@ def test_a_region_side_along_part_of_an_earlier_regions_side(seed):
     given a midpoint as their crossing, and the side doubled back (a duplicate node, lost
     segments).  The corner is a junction now, and only the stretch off the earlier region is
     an interface."""
-    import sys
-    from pathlib import Path
-
     from injmesh.sizing.background import exact_boundary
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from fuzz_csg import draw
-
-    domain, regions, curves, size, _ = draw(seed)
-    mesh = injmesh.generate(domain, size, regions=regions, curves=curves or None)
-    assert mesh.stats.valid
-    assert mesh.quality().min() > 0.3
+    _, regions, mesh = _fuzzed_mesh(seed)
     areas = mesh.region_areas()
-    assert areas.sum() == pytest.approx(exact_boundary(domain).area, rel=0.01)
     # The boxes' areas, the later one without what the earlier one holds of it.
     earlier = None
     for k, region in enumerate(regions.values(), start=1):
