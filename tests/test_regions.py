@@ -567,30 +567,6 @@ def test_moved_corner_projection_is_continuous():
     assert np.allclose(out[~inside, 0], 0.375)
 
 
-def test_a_curve_bent_through_a_corner_has_no_crossing_left_beside_it():
-    """``fuzz_csg.py`` seed 67111: a polyline passes a region's corner 0.04 h off and crosses
-    the region's side 0.06 h from it.  The crossing was found on the line as drawn, then the
-    curve was bent through the corner: it ran along the side from the corner to the crossing
-    (warned as two meetings at 0 degrees; 18 boundary edges off the boundary, MeshError).  The
-    curve is bent first now, and the corner is its one junction with the side there."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from fuzz_csg import draw
-
-    domain, regions, curves, size, _ = draw(67111)
-    with warnings.catch_warnings(record=True) as record:
-        warnings.simplefilter("always")
-        mesh = injmesh.generate(domain, size, regions=regions, curves=curves)
-    assert not any("at 0 degrees" in str(w.message) for w in record)
-    assert mesh.stats.valid
-    corner, crossing = np.array([0.626804, 0.468293]), np.array([0.632148, 0.470381])
-    on_curves = mesh.points[np.unique(mesh.curve_edges)]
-    assert np.min(np.hypot(*(on_curves - corner).T)) < 1e-5
-    assert np.min(np.hypot(*(mesh.points - crossing).T)) > 1e-3
-
-
 def test_a_ring_whose_end_misses_its_start_is_closed():
     """A digitised ring whose last point misses its first by 2e-4 (h/200): kept open, its two
     end nodes that close made a triangle of q 0.006.  It is closed there, with a warning, and

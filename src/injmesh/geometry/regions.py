@@ -1085,15 +1085,6 @@ def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
     fixed vertex is that vertex), and into a user curve the other pieces' fixed vertices
     within ``merge`` of it (:func:`_near_misses`)."""
     extra: list[list[FloatArray]] = _near_misses(pieces, eps, merge)
-    # A user curve is bent through the vertices it passes that closely before its crossings
-    # are found: found on the line as drawn, a crossing 0.06 h from a region's corner the
-    # curve was then bent through stayed on the region's side, and the curve ran along the
-    # side between the two (18 boundary edges off the boundary; found by fuzzing).
-    pieces = list(pieces)
-    for i, p in enumerate(pieces):
-        if p.owner < 0 and extra[i]:
-            pieces[i] = _bent(p, np.array(extra[i]), eps, merge)
-            extra[i] = []
     fixed_pts = np.concatenate([p.points[p.fixed] for p in pieces] + [np.empty((0, 2))])
     # Each crossing once, with its pair of pieces and of segments.
     crossings: list[FloatArray] = []
@@ -1142,21 +1133,16 @@ def _join(pieces: list[Piece], eps: float, merge: float) -> list[Piece]:
         near = np.min(np.hypot(*(allx[:, None, :] - mine[None, :, :]).transpose(2, 0, 1)), axis=1) <= merge
         # A user curve's own fixed vertex that close to a junction is the junction (region
         # boundaries are not bent: their vertices stay on their curves).
-        out.append(_bent(p, allx[near], eps, merge) if p.owner < 0 else _insert(p, allx[near], eps))
+        joined = _insert(p, allx[near], eps, merge if p.owner < 0 else 0.0)
+        drawn = p.points if p.closed else np.concatenate([p.points, p.points[-2:0:-1]])
+        if p.owner < 0 and np.any(_polyline_distance(joined.points, drawn) > 10 * eps):
+            # Bent through a junction off it (a near miss, a snapped vertex), the curve's nodes
+            # slide on the bent polyline: on the one drawn, those beside a region's corner the
+            # curve was bent through (h / 24 off it) crossed the region's side (a lost segment,
+            # found by fuzzing).
+            joined = replace(joined, project=_polyline_projection(joined.points, joined.closed))
+        out.append(joined)
     return out
-
-
-def _bent(p: Piece, q: FloatArray, eps: float, merge: float) -> Piece:
-    """The user curve ``p`` with the points ``q`` inserted as fixed vertices, its own fixed
-    vertices within ``merge`` of one moved onto it (:func:`_insert`); when that bends it off
-    its polyline, its nodes slide on the bent one.  On the polyline as drawn, nodes beside a
-    region's corner the curve was bent through (h / 24 off it) crossed the region's side (a
-    lost segment, found by fuzzing)."""
-    joined = _insert(p, q, eps, merge)
-    drawn = p.points if p.closed else np.concatenate([p.points, p.points[-2:0:-1]])
-    if np.any(_polyline_distance(joined.points, drawn) > 10 * eps):
-        joined = replace(joined, project=_polyline_projection(joined.points, joined.closed))
-    return joined
 
 
 def _merged_junctions(fixed: FloatArray, crossings: list[FloatArray], tags: list[tuple[int, int, int, int]],
