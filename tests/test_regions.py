@@ -550,7 +550,7 @@ def test_moved_corner_projection_is_continuous():
     was = np.array([0.375, 0.25])
     now = np.array([0.3741, 0.2481])
     reach = 0.008
-    c = _MovedCorner(was, now, was + (0.0, reach), was + (reach, 0.0), reach, SQUARE)
+    c = _MovedCorner(was, now, was + (0.0, reach), was + (reach, 0.0), reach)
     project = _MovedCorners(box.project, [c])
     t = np.linspace(0.0, 3 * reach, 3001)
     beside = project(np.c_[np.full_like(t, 0.375) - 1e-3, 0.25 + t])  # 1e-3 off the left side

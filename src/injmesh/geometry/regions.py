@@ -480,7 +480,7 @@ def _corners_onto_walls(loops: list[FloatArray], corners: FloatArray, walls: lis
             before = c + reach * (a - c) / np.hypot(*(a - c))
             after = c + reach * (b - c) / np.hypot(*(b - c))
             moved = walls[int(onto[i])].project(c[None, :])[0]
-            records.append(_MovedCorner(c.copy(), moved, before, after, reach, walls[int(onto[i])]))
+            records.append(_MovedCorner(c.copy(), moved, before, after, reach))
             rows.append(np.stack([before, moved, after]))
         out.append(np.concatenate(rows) if rows else lp)
     return out, records
@@ -494,14 +494,13 @@ CORNER_REACH = 4.0
 @dataclass(frozen=True)
 class _MovedCorner:
     """A region's corner moved onto a wall (:func:`_corners_onto_walls`): where it was, where
-    it is, the loop's vertices ``reach`` from it on its two sides, and the wall."""
+    it is, and the loop's vertices ``reach`` from it on its two sides."""
 
     was: FloatArray
     now: FloatArray
     before: FloatArray
     after: FloatArray
     reach: float
-    wall: Domain
 
 
 class _MovedCorners:
@@ -1060,20 +1059,17 @@ def _meeting_points(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray, 
     """
     x = _intersection(a, b, c, d)
     r, s = b - a, d - c
-    if r[0] * s[1] - r[1] * s[0] != 0 and _to_segment(x, a, b) <= eps and _to_segment(x, c, d) <= eps:
+    starts, ends = np.stack([a, c]), np.stack([b, d])
+    if r[0] * s[1] - r[1] * s[0] != 0 and np.all(_segment_feet(x[None, :], starts, ends)[1] <= eps):
         return [x]
+    # Each segment's ends against the other segment.
+    tips = np.stack([a, b, c, d])
+    across = _segment_feet(tips, starts, ends)[1][np.arange(4), [1, 1, 0, 0]]
     out: list[FloatArray] = []
-    for q, u, v in ((a, c, d), (b, c, d), (c, a, b), (d, a, b)):
-        if _to_segment(q, u, v) <= eps and all(np.hypot(*(q - o)) > eps for o in out):
+    for q, dq in zip(tips, across, strict=True):
+        if dq <= eps and all(np.hypot(*(q - o)) > eps for o in out):
             out.append(q)
     return out or [x]
-
-
-def _to_segment(q: FloatArray, a: FloatArray, b: FloatArray) -> float:
-    """The distance from the point q to the segment a-b."""
-    ab = b - a
-    t = min(max(float((q - a) @ ab) / max(float(ab @ ab), 1e-300), 0.0), 1.0)
-    return float(np.hypot(*(q - a - t * ab)))
 
 
 # --- junctions between pieces -----------------------------------------------------------------
